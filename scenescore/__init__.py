@@ -1,0 +1,29 @@
+"""scenescore: learn a cost function for object arrangement from examples, and plan with it."""
+
+from __future__ import annotations
+
+from . import costs, models, scenarios, solvers
+from .encoders import Encoder, FootprintEncoder, make_encoder
+from .problem import Problem, ProblemError
+from .scene import Scene, SceneError, SceneObject, read_jsonl, write_jsonl
+from .solvers import solve
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Encoder",
+    "FootprintEncoder",
+    "make_encoder",
+    "Scene",
+    "SceneError",
+    "SceneObject",
+    "read_jsonl",
+    "write_jsonl",
+    "models",
+    "costs",
+    "solvers",
+    "Problem",
+    "ProblemError",
+    "solve",
+    "scenarios",
+]

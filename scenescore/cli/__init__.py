@@ -1,0 +1,74 @@
+"""The ``scenescore`` command line: a thin layer over the library.
+
+Each sub-command lives in a module of this package with ``register(subparsers)``; the module sets
+``func`` on its parser. Errors the user can fix (bad files, keys, names) print one line and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# modules of this package that add sub-commands, in the order --help lists them
+COMMAND_MODULES = ["demo", "data", "place", "experiment", "problems"]
+
+
+class UserError(Exception):
+    """An error in the user's input; printed without a traceback."""
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    from ..models import CheckpointError
+    from ..scene import SceneError
+
+    errs: list[type[BaseException]] = [UserError, SceneError, CheckpointError, FileNotFoundError]
+    try:
+        from ..problem import ProblemError
+
+        errs.append(ProblemError)
+    except ImportError:
+        pass
+    return tuple(errs)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="scenescore",
+        description="Learn a cost function for object arrangement from examples, and plan with it.",
+    )
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"scenescore {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"{__name__}.{name}").register(sub)
+    return parser
+
+
+def add_common(p: argparse.ArgumentParser, seed: int = 0) -> None:
+    """Options every command has."""
+    p.add_argument("--seed", type=int, default=seed, help=f"random seed (default {seed})")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        rc = args.func(args)
+    except _user_errors() as e:
+        msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
+        print(f"scenescore {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    return int(rc or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

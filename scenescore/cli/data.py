@@ -1,0 +1,112 @@
+"""``scenescore generate`` and ``scenescore train``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from . import UserError, add_common
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "generate",
+        help="generate scenes from a scenario",
+        description=(
+            "Generate scenes from a data-generating process and write them as JSONL (one scene per line)."
+        ),
+    )
+    p.add_argument("scenario", help="scenario name (see `scenescore generate --list`)", nargs="?")
+    p.add_argument("--n", type=int, default=48, help="number of scenes (default 48)")
+    p.add_argument("--out", type=Path, help="output .jsonl file")
+    p.add_argument(
+        "--images", type=Path, default=None, help="also render top-down images (and a JSON per image) here"
+    )
+    p.add_argument("--ppm", type=float, default=None, help="image resolution in pixels per metre")
+    p.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    add_common(p)
+    p.set_defaults(func=run_generate)
+
+    p = sub.add_parser(
+        "train",
+        help="train an energy model on example arrangements",
+        description=(
+            "Train the SceneScore energy (InfoNCE with Langevin counter-examples) on a .jsonl of scenes "
+            "or a folder of top-down images."
+        ),
+    )
+    p.add_argument("data", type=Path, help=".jsonl of scenes, or a folder of images")
+    p.add_argument("--out", type=Path, required=True, help="checkpoint to write (safetensors)")
+    p.add_argument(
+        "--iterations", type=int, default=None, help="training iterations (default from TrainConfig)"
+    )
+    p.add_argument("--negatives", type=int, default=None, help="counter-examples per scene")
+    p.add_argument("--activation", choices=["silu", "softplus", "leaky_relu"], default=None)
+    p.add_argument("--message", choices=["mlp", "linear"], default=None, help="message function f")
+    p.add_argument("--absolute", action="store_true", help="the Abs ablation: absolute poses, no edges")
+    p.add_argument(
+        "--encoder",
+        default=None,
+        help="semantic encoder: footprint (default for .jsonl), image (default for a folder), clip",
+    )
+    p.add_argument("--ppm", type=float, default=None, help="pixels per metre of the images (folder input)")
+    add_common(p)
+    p.set_defaults(func=run_train)
+
+
+def run_generate(args: argparse.Namespace) -> int:
+    from ..scenarios import available, get
+    from ..scene import write_jsonl
+
+    if args.list or not args.scenario:
+        print("\n".join(available()))
+        return 0
+    if args.out is None and args.images is None:
+        raise UserError("give --out FILE.jsonl and/or --images DIR")
+    if args.n < 1:
+        raise UserError(f"--n must be at least 1, got {args.n}")
+    scenes = get(args.scenario).generate(args.n, args.seed)
+    if args.out is not None:
+        write_jsonl(args.out, scenes)
+        print(f"wrote {len(scenes)} {args.scenario} scenes to {args.out}")
+    if args.images is not None:
+        from ..vision import write_rendered_dataset
+
+        kw = {} if args.ppm is None else {"ppm": args.ppm}
+        write_rendered_dataset(scenes, args.images, progress=not args.quiet, **kw)
+        print(f"rendered {len(scenes)} images to {args.images}")
+    return 0
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from ..encoders import make_encoder
+    from ..scene import read_jsonl
+    from ..training import TrainConfig, train
+
+    encoder = make_encoder(args.encoder or ("image" if args.data.is_dir() else "footprint"))
+    if args.data.is_dir():
+        from ..vision import scenes_from_image_folder
+
+        kw = {} if args.ppm is None else {"ppm": args.ppm}
+        scenes = scenes_from_image_folder(args.data, encoder, progress=not args.quiet, **kw)
+    elif args.data.exists():
+        scenes = read_jsonl(args.data)
+    else:
+        raise UserError(f"{args.data}: no such file or folder")
+    cfg = TrainConfig()
+    if args.iterations is not None:
+        cfg.iterations = args.iterations
+    if args.negatives is not None:
+        cfg.negatives = args.negatives
+    model_kw = {k: v for k, v in {"activation": args.activation, "message": args.message}.items() if v}
+    if args.absolute:
+        model_kw["absolute"] = True
+    cfg.model.update(model_kw)
+    model = train(scenes, cfg, encoder=encoder, seed=args.seed, progress=not args.quiet)
+    model.save(args.out)
+    info = model.info
+    print(
+        f"trained on {info['scenes']} scenes in {info['seconds']:.0f} s "
+        f"(final loss {info['final_loss']:.3f}, chance {info['chance_loss']:.3f}); wrote {args.out}"
+    )
+    return 0

@@ -1,0 +1,347 @@
+"""Cost objects: named, batched, differentiable terms that sum into one flat weighted objective.
+
+A cost maps poses ``(B, N, 3)`` to ``(B,)``. ``w * cost`` and ``cost + cost`` build a :class:`Sum`, a flat
+list of ``(weight, term)`` (sums never nest); two terms with one name are an error. Costs that need the
+scene (footprints, names, which objects move) are *bound* to it with :meth:`Cost.bind`, which returns a
+bound copy; :class:`~scenescore.problem.Problem` does this for you.
+
+Constraint-like costs (collision, bounds, reach) also expose their constraints as ``g(poses) >= 0``
+rows in metres; their penalty is ``sum(relu(-g) ** power)`` and their violation is ``max(relu(-g))``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from ..scene import Scene, SceneError
+from .geometry import Footprints
+
+__all__ = ["CostError", "Binding", "Cost", "ConstraintCost", "Sum", "TermValue", "as_sum"]
+
+
+class CostError(ValueError):
+    """A cost used wrongly: unbound, a bad pose tensor, a duplicate name, a non-finite value."""
+
+
+@dataclass
+class Binding:
+    """What a bound cost knows of its problem: the scene, which objects move, the footprints."""
+
+    scene: Scene
+    movable: np.ndarray  # (N,) bool
+    footprints: Footprints
+
+    @classmethod
+    def make(cls, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Binding:
+        n = len(scene)
+        if movable is None:
+            mask = np.array([not o.fixed for o in scene.objects])
+        elif isinstance(movable, np.ndarray) and movable.dtype == bool:
+            mask = movable.copy()
+        else:
+            mask = np.zeros(n, dtype=bool)
+            for name in movable:
+                mask[scene.index(name)] = True
+        if mask.shape != (n,):
+            raise CostError(f"movable: expected {n} flags, got shape {mask.shape}")
+        return cls(scene, mask, Footprints.from_scene(scene))
+
+
+@dataclass
+class TermValue:
+    """One term of a sum at a batch of poses: its raw value, weight, weighted value and violation."""
+
+    value: Tensor  # (B,)
+    weight: float
+    weighted: Tensor  # (B,)
+    violation: Tensor | None  # (B,), metres (or radians); None for terms that are not constraints
+
+
+class Cost:
+    """Base of all costs: ``name``, ``evaluate(poses (B, N, 3)) -> (B,)``, algebra, binding."""
+
+    name: str = "cost"
+    needs_scene: bool = False
+    _binding: Binding | None = None
+
+    # -- the contract -------------------------------------------------------------------------------
+    def evaluate(self, poses: Tensor) -> Tensor:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def violation(self, poses: Tensor) -> Tensor | None:
+        """Largest violation per batch row ``(B,)``, or ``None`` when the cost is not a constraint."""
+        return None
+
+    @property
+    def is_constraint(self) -> bool:
+        return False
+
+    def _on_bind(self) -> None:
+        """Precompute whatever depends on the scene (subclasses)."""
+
+    # -- binding ------------------------------------------------------------------------------------
+    def bind(self, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Cost:
+        """A copy of this cost bound to ``scene`` (``movable``: names or an ``(N,)`` mask; default: not fixed)."""
+        out = copy.copy(self)
+        out._binding = Binding.make(scene, movable)
+        out._on_bind()
+        return out
+
+    @property
+    def binding(self) -> Binding:
+        if self._binding is None:
+            raise CostError(
+                f"cost {self.name!r} ({type(self).__name__}) is not bound to a scene: "
+                "use ss.Problem(scene, cost) or cost.bind(scene)"
+            )
+        return self._binding
+
+    def _check(self, poses: Tensor) -> Tensor:
+        if not isinstance(poses, Tensor):
+            raise CostError(
+                f"cost {self.name!r}: expected poses as a torch tensor (B, N, 3), got {type(poses).__name__}"
+            )
+        if poses.dim() != 3 or poses.shape[-1] != 3:
+            raise CostError(
+                f"cost {self.name!r}: expected poses of shape (B, N, 3), got {tuple(poses.shape)}"
+            )
+        if self._binding is not None and poses.shape[1] != len(self._binding.scene):
+            raise CostError(
+                f"cost {self.name!r}: poses have {poses.shape[1]} objects, the scene has {len(self._binding.scene)}"
+            )
+        if not poses.is_floating_point():
+            raise CostError(f"cost {self.name!r}: expected floating-point poses, got {poses.dtype}")
+        return poses
+
+    def __call__(self, poses: Tensor) -> Tensor:
+        if self.needs_scene:
+            self.binding  # noqa: B018 - raises a clear error when unbound
+        return self.evaluate(self._check(poses))
+
+    # -- algebra ------------------------------------------------------------------------------------
+    def __mul__(self, w: float) -> Sum:
+        return Sum([(_weight(w, self.name), self)])
+
+    __rmul__ = __mul__
+
+    def __add__(self, other: Cost) -> Sum:
+        return as_sum(self) + other
+
+    def __radd__(self, other: object) -> Sum:
+        if other == 0:  # sum([...]) starts from 0
+            return as_sum(self)
+        return NotImplemented
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(name={self.name!r})"
+
+
+class ConstraintCost(Cost):
+    """A cost defined by constraint rows ``g(poses) >= 0`` (metres): penalty ``sum(relu(-g) ** power)``."""
+
+    needs_scene = True
+    power: float = 1.0
+
+    @property
+    def is_constraint(self) -> bool:
+        return True
+
+    def constraints(self, poses: Tensor) -> Tensor:  # pragma: no cover - abstract
+        """Rows ``(B, M)``; feasible where every row is ``>= 0``."""
+        raise NotImplementedError
+
+    def labels(self) -> list[str]:  # pragma: no cover - abstract
+        """A short label per row (``"mug / plate_0"``, ``"mug: x >= -0.6"``)."""
+        raise NotImplementedError
+
+    def support(self) -> list[tuple[int, ...]]:  # pragma: no cover - abstract
+        """The objects each row depends on."""
+        raise NotImplementedError
+
+    def jacobian(self, poses: Tensor) -> tuple[Tensor, Tensor]:
+        """Rows and their Jacobian: ``g (B, M)``, ``dg/dposes (B, M, N, 3)`` (one batched backward pass)."""
+        poses = self._check(poses).detach()
+        b, n, _ = poses.shape
+        m = len(self.labels())
+        if m == 0:
+            return poses.new_zeros(b, 0), poses.new_zeros(b, 0, n, 3)
+        with torch.enable_grad():
+            x = poses[:, None].expand(b, m, n, 3).reshape(b * m, n, 3).clone().requires_grad_(True)
+            g = self.constraints(x).reshape(b, m, m)
+            diag = torch.diagonal(g, dim1=1, dim2=2)  # (B, M): row k evaluated on copy k
+            (jac,) = torch.autograd.grad(diag.sum(), x)
+        return diag.detach(), jac.reshape(b, m, n, 3)
+
+    def project(self, poses: Tensor, movable: Tensor) -> Tensor:
+        """Closed-form projection onto the constraint set where one exists (default: none)."""
+        return poses
+
+    def evaluate(self, poses: Tensor) -> Tensor:
+        g = self.constraints(poses)
+        if g.shape[-1] == 0:
+            return poses.new_zeros(poses.shape[0])
+        return (torch.relu(-g) ** self.power).sum(-1)
+
+    def violation(self, poses: Tensor) -> Tensor:
+        poses = self._check(poses)
+        g = self.constraints(poses)
+        if g.shape[-1] == 0:
+            return poses.new_zeros(poses.shape[0])
+        return torch.relu(-g).max(-1).values
+
+    def worst(self, poses: Tensor) -> tuple[str, float] | None:
+        """The most violated row at one pose set ``(N, 3)`` or ``(1, N, 3)``: ``(label, violation)``."""
+        p = poses.reshape(1, -1, 3)
+        g = self.constraints(self._check(p))[0]
+        if g.numel() == 0:
+            return None
+        k = int(torch.argmin(g))
+        return self.labels()[k], float(torch.relu(-g[k]))
+
+
+def _weight(w: object, name: str) -> float:
+    if isinstance(w, bool) or not isinstance(w, (int, float)):
+        raise CostError(f"weight of {name!r}: expected a number, got {w!r}")
+    if not math.isfinite(w) or w < 0:
+        raise CostError(f"weight of {name!r}: expected a finite number >= 0, got {w!r}")
+    return float(w)
+
+
+class Sum(Cost):
+    """A flat weighted sum of named terms; ``terms(poses)`` gives each term's breakdown."""
+
+    name = "total"
+
+    def __init__(self, terms: list[tuple[float, Cost]]):
+        flat: list[tuple[float, Cost]] = []
+        for w, c in terms:
+            if isinstance(c, Sum):
+                flat.extend((w * w2, c2) for w2, c2 in c.items)
+            elif isinstance(c, Cost):
+                flat.append((w, c))
+            else:
+                raise CostError(f"cannot add {type(c).__name__} to a cost: expected a scenescore Cost")
+        seen: set[str] = set()
+        for _, c in flat:
+            if c.name in seen:
+                raise CostError(
+                    f"two cost terms are named {c.name!r}; names must be unique: pass name=... to one of them"
+                )
+            seen.add(c.name)
+        self.items = flat
+
+    @property
+    def needs_scene(self) -> bool:  # type: ignore[override]
+        return any(c.needs_scene for _, c in self.items)
+
+    def __iter__(self) -> Iterator[tuple[float, Cost]]:
+        return iter(self.items)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, name: str) -> Cost:
+        for _, c in self.items:
+            if c.name == name:
+                return c
+        raise CostError(f"no cost term named {name!r}; terms are {self.names}")
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for _, c in self.items]
+
+    def weight(self, name: str) -> float:
+        for w, c in self.items:
+            if c.name == name:
+                return w
+        raise CostError(f"no cost term named {name!r}; terms are {self.names}")
+
+    def bind(self, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Sum:
+        binding = Binding.make(scene, movable)
+        out = Sum([(w, c.bind(scene, binding.movable)) for w, c in self.items])
+        out._binding = binding
+        return out
+
+    def __mul__(self, w: float) -> Sum:
+        w = _weight(w, self.name)
+        return Sum([(w * w2, c) for w2, c in self.items])
+
+    __rmul__ = __mul__
+
+    def __add__(self, other: Cost) -> Sum:
+        if not isinstance(other, Cost):
+            return NotImplemented
+        return Sum([*self.items, *as_sum(other).items])
+
+    def evaluate(self, poses: Tensor) -> Tensor:
+        total = poses.new_zeros(poses.shape[0])
+        for w, c in self.items:
+            v = c(poses)
+            _finite(v, c.name, poses)
+            total = total + w * v
+        return total
+
+    def terms(self, poses: Tensor) -> dict[str, TermValue]:
+        """Every term's value, weight, weighted value and violation at ``poses (B, N, 3)``."""
+        poses = self._check(poses)
+        out = {}
+        for w, c in self.items:
+            v = c(poses)
+            _finite(v, c.name, poses)
+            out[c.name] = TermValue(v, w, w * v, c.violation(poses) if c.is_constraint else None)
+        return out
+
+    def violation(self, poses: Tensor) -> Tensor | None:
+        vs = [c.violation(poses) for _, c in self.items if c.is_constraint]
+        if not vs:
+            return None
+        return torch.stack(vs, dim=-1).max(-1).values
+
+    @property
+    def constraint_terms(self) -> list[ConstraintCost]:
+        return [c for _, c in self.items if isinstance(c, ConstraintCost)]
+
+    @property
+    def objective_items(self) -> list[tuple[float, Cost]]:
+        """The terms that are not constraints (the objective of a constrained refinement)."""
+        return [(w, c) for w, c in self.items if not c.is_constraint]
+
+    def __repr__(self) -> str:
+        return " + ".join(f"{w:g} * {c!r}" for w, c in self.items)
+
+
+def _finite(v: Tensor, name: str, poses: Tensor) -> None:
+    if v.shape != (poses.shape[0],):
+        raise CostError(
+            f"cost term {name!r}: expected values of shape ({poses.shape[0]},), got {tuple(v.shape)}"
+        )
+    if not torch.isfinite(v).all():
+        bad = int((~torch.isfinite(v)).nonzero()[0, 0])
+        raise CostError(f"cost term {name!r} is not finite (NaN or inf) at batch row {bad}")
+
+
+def as_sum(cost: Cost) -> Sum:
+    """``cost`` as a :class:`Sum` (a sum is returned as is)."""
+    if isinstance(cost, Sum):
+        return cost
+    if not isinstance(cost, Cost):
+        raise CostError(f"expected a scenescore Cost, got {type(cost).__name__}")
+    return Sum([(1.0, cost)])
+
+
+def check_scene_names(scene: Scene, names: list[str], what: str) -> list[int]:
+    """Indices of ``names``; the error names the cost option and the objects there are."""
+    out = []
+    for n in names:
+        try:
+            out.append(scene.index(n))
+        except SceneError:
+            raise CostError(f"{what}: no object named {n!r}; objects are {scene.names}") from None
+    return out

@@ -1,0 +1,67 @@
+"""Experiment tables: rows of named figures, markdown with the paper's figures beside ours, JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..scene import atomic_write_text
+
+__all__ = ["Row", "format_table", "write_results"]
+
+
+@dataclass
+class Row:
+    """One method's figures (``name -> value``) and the paper's for the same names, where it gives them."""
+
+    method: str
+    figures: dict[str, float]
+    paper: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d: dict = {"method": self.method}
+        d.update(
+            {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in self.figures.items()}
+        )
+        if self.paper:
+            d["paper"] = self.paper
+        return d
+
+
+def _fmt(v: float | None, digits: int = 2) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    return f"{v:.{digits}f}"
+
+
+def format_table(
+    rows: list[Row], columns: list[tuple[str, str]], std: dict[str, str] | None = None, digits: int = 2
+) -> str:
+    """Markdown: one row per method; a column shows ``ours (paper)`` where the paper has a figure,
+    and ``mean +- std`` where ``std`` names the spread's key."""
+    std = std or {}
+    head = "| method | " + " | ".join(h for _, h in columns) + " |"
+    sep = "|---|" + "---:|" * len(columns)
+    lines = [head, sep]
+    for r in rows:
+        cells = []
+        for key, _ in columns:
+            v = r.figures.get(key)
+            cell = _fmt(v, digits)
+            if key in std and r.figures.get(std[key]) is not None and cell != "-":
+                cell += f" ± {_fmt(r.figures[std[key]], digits)}"
+            if key in r.paper:
+                cell += f" (paper {_fmt(r.paper[key], digits)})"
+            cells.append(cell)
+        lines.append(f"| {r.method} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_results(out_dir: str | Path, rows: list[Row], markdown: str) -> None:
+    """``table.md`` and ``results.json`` in ``out_dir``, each written atomically."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "table.md", markdown + "\n")
+    atomic_write_text(out / "results.json", json.dumps([r.to_dict() for r in rows], indent=1) + "\n")

@@ -1,0 +1,141 @@
+"""The SceneScore energy network: a dense, batched graph neural network over object poses.
+
+Nodes carry semantic embeddings (encoder vector -> trained 2-layer MLP, scale descriptor appended).
+The edge feature ``e_ji`` is the pose of object ``i`` in the frame of object ``j``:
+``R(-theta_j)(p_i - p_j), cos(theta_i - theta_j), sin(theta_i - theta_j)``, so the energy is invariant
+to any rigid motion of the whole scene. Each layer is ``v_i' = act(sum_j f(v_i, v_j, e_ji))``; global add
+pooling and an MLP head give one scalar per scene. Graphs are fully connected and dense: ``(B, N, N, H)``
+edge tensors with a padding mask.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Literal
+
+import torch
+from torch import Tensor, nn
+
+__all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation"]
+
+Activation = Literal["silu", "softplus", "leaky_relu"]
+
+
+@dataclass
+class EnergyConfig:
+    """Architecture of :class:`EnergyNet` (stored in checkpoints)."""
+
+    feat_dim: int
+    embed_dim: int = 32
+    hidden: int = 32
+    edge_hidden: int | None = None  # width inside the message MLP f (default: hidden)
+    layers: int = 3
+    message: Literal["mlp", "linear"] = "mlp"  # "linear": the paper's single linear layer
+    activation: Activation = "silu"  # the paper's is "leaky_relu"; smooth helps second-order solvers
+    absolute: bool = False  # the "Abs" ablation: absolute poses in the nodes, no edge features
+    length_scale: float = 0.1  # metres that map to one unit inside the network
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def make_activation(name: str) -> nn.Module:
+    """The activation module called ``name``."""
+    if name == "silu":
+        return nn.SiLU()
+    if name == "softplus":
+        return nn.Softplus()
+    if name == "leaky_relu":
+        return nn.LeakyReLU(0.1)
+    raise ValueError(f"unknown activation {name!r}; expected 'silu', 'softplus' or 'leaky_relu'")
+
+
+def edge_features(poses: Tensor, length_scale: float) -> Tensor:
+    """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``."""
+    p = poses[..., :2]  # (B, N, 2)
+    th = poses[..., 2]  # (B, N)
+    d = p[:, :, None, :] - p[:, None, :, :]  # (B, N_i, N_j, 2): p_i - p_j
+    c, s = torch.cos(th)[:, None, :], torch.sin(th)[:, None, :]  # theta_j, broadcast over i
+    rx = c * d[..., 0] + s * d[..., 1]
+    ry = -s * d[..., 0] + c * d[..., 1]
+    dth = th[:, :, None] - th[:, None, :]
+    return torch.stack([rx / length_scale, ry / length_scale, torch.cos(dth), torch.sin(dth)], dim=-1)
+
+
+class _MessageLayer(nn.Module):
+    """``v_i' = act(sum_{j != i} f(v_i, v_j, e_ji))`` with the first linear of ``f`` split per part."""
+
+    def __init__(self, d_in: int, d_edge: int, hidden: int, message: str, act: nn.Module, edge_hidden: int):
+        super().__init__()
+        inner = edge_hidden if message == "mlp" else hidden
+        self.w_i = nn.Linear(d_in, inner)
+        self.w_j = nn.Linear(d_in, inner, bias=False)
+        self.w_e = nn.Linear(d_edge, inner, bias=False) if d_edge else None
+        self.out = nn.Linear(inner, hidden) if message == "mlp" else None
+        self.act = act
+
+    def forward(self, v: Tensor, e: Tensor | None, pair_mask: Tensor) -> Tensor:
+        m = self.w_i(v)[:, :, None, :] + self.w_j(v)[:, None, :, :]  # (B, N, N, H)
+        if self.w_e is not None and e is not None:
+            m = m + self.w_e(e)
+        if self.out is not None:
+            m = self.out(self.act(m))
+        m = m * pair_mask[..., None]
+        return self.act(m.sum(dim=2))
+
+
+class EnergyNet(nn.Module):
+    """E(x | s): poses ``(B, N, 3)``, features ``(B, N, F)``, sizes ``(B, N, 2)``, mask ``(B, N)`` -> ``(B,)``."""
+
+    def __init__(self, cfg: EnergyConfig):
+        super().__init__()
+        self.cfg = cfg
+        act = make_activation(cfg.activation)
+        self.embed = nn.Sequential(
+            nn.Linear(cfg.feat_dim, cfg.hidden),
+            make_activation(cfg.activation),
+            nn.Linear(cfg.hidden, cfg.embed_dim),
+        )
+        d_node = cfg.embed_dim + 2 + (4 if cfg.absolute else 0)
+        d_edge = 0 if cfg.absolute else 4
+        dims = [d_node] + [cfg.hidden] * cfg.layers
+        self.layers = nn.ModuleList(
+            _MessageLayer(dims[k], d_edge, cfg.hidden, cfg.message, act, cfg.edge_hidden or cfg.hidden)
+            for k in range(cfg.layers)
+        )
+        self.head = nn.Sequential(
+            nn.Linear(cfg.hidden, cfg.hidden), make_activation(cfg.activation), nn.Linear(cfg.hidden, 1)
+        )
+
+    def node_embedding(self, feats: Tensor, sizes: Tensor) -> Tensor:
+        """Pose-independent node features ``(B, N, embed_dim + 2)``."""
+        return torch.cat([self.embed(feats), sizes / self.cfg.length_scale], dim=-1)
+
+    def forward(
+        self,
+        poses: Tensor,
+        feats: Tensor,
+        sizes: Tensor,
+        mask: Tensor | None = None,
+        nodes: Tensor | None = None,
+    ) -> Tensor:
+        """Energy per scene. ``nodes`` may carry a precomputed :meth:`node_embedding` (broadcast over B)."""
+        b, n, _ = poses.shape
+        if mask is None:
+            mask = torch.ones(b, n, dtype=torch.bool, device=poses.device)
+        v = self.node_embedding(feats, sizes) if nodes is None else nodes
+        v = v.expand(b, n, v.shape[-1])
+        maskf = mask.to(poses.dtype).expand(b, n)
+        eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
+        pair = maskf[:, :, None] * maskf[:, None, :] * (1 - eye)  # (B, N, N), no self-edges, no padding
+        if self.cfg.absolute:
+            th = poses[..., 2:3]
+            absf = torch.cat([poses[..., :2] / self.cfg.length_scale, torch.cos(th), torch.sin(th)], dim=-1)
+            v = torch.cat([v, absf], dim=-1)
+            e = None
+        else:
+            e = edge_features(poses, self.cfg.length_scale)
+        for layer in self.layers:
+            v = layer(v, e, pair)
+        pooled = (v * maskf[..., None]).sum(dim=1)  # global add pooling
+        return self.head(pooled).squeeze(-1)

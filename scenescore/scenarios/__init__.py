@@ -1,0 +1,42 @@
+"""Data-generating processes: seeded scene generators, each with an oracle where one is defined."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol
+
+from ..scene import Scene, SceneError
+from .dining import DiningScenario
+
+__all__ = ["Scenario", "register", "get", "available", "DiningScenario"]
+
+
+class Scenario(Protocol):
+    """A seeded generator of scenes (``generate``), with the experiment's split and an oracle."""
+
+    name: str
+
+    def generate(self, n: int, seed: int) -> list[Scene]: ...
+
+    def split(self, seed: int) -> tuple[list[Scene], list[Scene]]: ...
+
+    def oracle(self, scene: Scene, name: str) -> tuple[float, float, float]: ...
+
+
+_REGISTRY: dict[str, Callable[..., Any]] = {"dining": DiningScenario}
+
+
+def register(name: str, factory: Callable[..., Any]) -> None:
+    """Add a scenario under ``name``."""
+    _REGISTRY[name] = factory
+
+
+def available() -> list[str]:
+    return sorted(_REGISTRY)
+
+
+def get(name: str, **options: Any) -> Any:
+    """The scenario called ``name``; an unknown name lists the valid ones."""
+    if name not in _REGISTRY:
+        raise SceneError(f"unknown scenario {name!r}; available: {', '.join(available())}")
+    return _REGISTRY[name](**options)

@@ -1,0 +1,379 @@
+"""Scenes: objects on a plane with footprints, colours and poses; JSON and JSONL reading and writing.
+
+The JSON contract (one scene per line in a ``.jsonl`` dataset)::
+
+    {"objects": [{"name": "fork_0", "category": "fork", "size": [0.19, 0.025],
+                  "pose": [0.12, -0.31, 1.5708], "color": [180, 180, 190]}],
+     "bounds": [[-0.6, -0.6], [0.6, 0.6]]}
+
+``pose: null`` marks a pose to predict; ``"fixed": true`` an object no solver may move. Optional per
+object: ``shape`` (``"box"``, ``"disk"`` or ``{"polygon": [[x, y], ...]}``), ``features`` (a precomputed
+semantic vector) and ``image`` (a crop to encode).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Bounds",
+    "SceneError",
+    "SceneObject",
+    "Scene",
+    "read_jsonl",
+    "write_jsonl",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "wrap_angle",
+]
+
+Bounds = tuple[tuple[float, float], tuple[float, float]]
+DEFAULT_BOUNDS: Bounds = ((-0.6, -0.6), (0.6, 0.6))
+_OBJECT_KEYS = {"name", "category", "size", "pose", "color", "fixed", "shape", "features", "image"}
+_SCENE_KEYS = {"objects", "bounds", "meta"}
+
+
+class SceneError(ValueError):
+    """Malformed scene input; the message names the file, line, object and field."""
+
+
+def wrap_angle(a):
+    """Wrap angles (float, ndarray or tensor) to [-pi, pi)."""
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename: a failure leaves the old file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write text atomically (see :func:`atomic_write_bytes`)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _where(source: str | None, line: int | None) -> str:
+    if source is None:
+        return "scene"
+    return f"{source}:{line}" if line is not None else str(source)
+
+
+def _number(value: Any, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{what}: expected a number, got {value!r}")
+    if not math.isfinite(value):
+        raise SceneError(f"{what}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def _vector(value: Any, n: int | None, what: str) -> list[float]:
+    if not isinstance(value, (list, tuple)):
+        raise SceneError(f"{what}: expected a list of {n if n else 'some'} numbers, got {value!r}")
+    if n is not None and len(value) != n:
+        raise SceneError(f"{what}: expected {n} numbers, got {len(value)}: {value!r}")
+    return [_number(v, f"{what}[{i}]") for i, v in enumerate(value)]
+
+
+@dataclass
+class SceneObject:
+    """One object: identity, footprint, appearance and pose ``(x, y, theta)`` (``None``: to predict)."""
+
+    name: str
+    category: str
+    size: tuple[float, float]
+    pose: tuple[float, float, float] | None = None
+    color: tuple[int, int, int] = (128, 128, 128)
+    fixed: bool = False
+    shape: str | dict = "box"
+    features: list[float] | None = None
+    image: str | None = None
+
+    @property
+    def shape_kind(self) -> str:
+        """``box``, ``disk`` or ``polygon``."""
+        return self.shape if isinstance(self.shape, str) else "polygon"
+
+    def polygon(self) -> np.ndarray:
+        """The footprint's outline in the object's own frame, ``(K, 2)`` counter-clockwise."""
+        length, width = self.size
+        if self.shape_kind == "box":
+            hx, hy = length / 2, width / 2
+            return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        if self.shape_kind == "disk":
+            k = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+            return np.stack([length / 2 * np.cos(k), width / 2 * np.sin(k)], axis=1)
+        return np.asarray(self.shape["polygon"], dtype=float)
+
+    def world_polygon(self, pose: Sequence[float] | None = None) -> np.ndarray:
+        """The outline placed at ``pose`` (default: the object's own pose)."""
+        pose = self.pose if pose is None else pose
+        if pose is None:
+            raise SceneError(f"object {self.name!r}: has no pose")
+        x, y, t = pose
+        c, s = math.cos(t), math.sin(t)
+        local = self.polygon()
+        return local @ np.array([[c, s], [-s, c]]) + np.array([x, y])
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "name": self.name,
+            "category": self.category,
+            "size": [float(v) for v in self.size],
+            "pose": None if self.pose is None else [float(v) for v in self.pose],
+            "color": [int(v) for v in self.color],
+        }
+        if self.fixed:
+            d["fixed"] = True
+        if self.shape != "box":
+            d["shape"] = self.shape
+        if self.features is not None:
+            d["features"] = [float(v) for v in self.features]
+        if self.image is not None:
+            d["image"] = self.image
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "scene", index: int = 0) -> SceneObject:
+        """Parse one object; errors name ``where``, the object and the field."""
+        if not isinstance(d, dict):
+            raise SceneError(f"{where}: objects[{index}]: expected an object (a JSON mapping), got {d!r}")
+        label = f"{where}: object {d.get('name', f'#{index}')!r}"
+        unknown = set(d) - _OBJECT_KEYS
+        if unknown:
+            raise SceneError(
+                f"{label}: unknown field(s) {sorted(unknown)}; expected some of {sorted(_OBJECT_KEYS)}"
+            )
+        for key in ("name", "category", "size"):
+            if key not in d:
+                raise SceneError(f"{label}: missing field {key!r}")
+        if not isinstance(d["name"], str) or not d["name"]:
+            raise SceneError(
+                f"{where}: objects[{index}].name: expected a non-empty string, got {d['name']!r}"
+            )
+        if not isinstance(d["category"], str) or not d["category"]:
+            raise SceneError(f"{label}: field 'category': expected a non-empty string, got {d['category']!r}")
+        size = _vector(d["size"], 2, f"{label}: field 'size'")
+        if min(size) <= 0:
+            raise SceneError(f"{label}: field 'size': expected two positive lengths in metres, got {size}")
+        pose_raw = d.get("pose")
+        pose = (
+            None if pose_raw is None else tuple(_vector(pose_raw, 3, f"{label}: field 'pose' [x, y, theta]"))
+        )
+        color_raw = d.get("color", [128, 128, 128])
+        color = _vector(color_raw, 3, f"{label}: field 'color'")
+        if any(c < 0 or c > 255 for c in color):
+            raise SceneError(f"{label}: field 'color': expected three integers in 0..255, got {color_raw!r}")
+        fixed = d.get("fixed", False)
+        if not isinstance(fixed, bool):
+            raise SceneError(f"{label}: field 'fixed': expected true or false, got {fixed!r}")
+        shape = d.get("shape", "box")
+        if isinstance(shape, str):
+            if shape not in ("box", "disk"):
+                raise SceneError(
+                    f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}"
+                )
+        elif isinstance(shape, dict) and set(shape) == {"polygon"}:
+            pts = shape["polygon"]
+            if not isinstance(pts, list) or len(pts) < 3:
+                raise SceneError(
+                    f"{label}: field 'shape.polygon': expected at least 3 [x, y] points, got {pts!r}"
+                )
+            shape = {
+                "polygon": [_vector(p, 2, f"{label}: field 'shape.polygon[{i}]'") for i, p in enumerate(pts)]
+            }
+        else:
+            raise SceneError(
+                f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}"
+            )
+        feats = d.get("features")
+        if feats is not None:
+            feats = _vector(feats, None, f"{label}: field 'features'")
+        image = d.get("image")
+        if image is not None and not isinstance(image, str):
+            raise SceneError(f"{label}: field 'image': expected a path string, got {image!r}")
+        if pose is None and fixed:
+            raise SceneError(f"{label}: a fixed object needs a pose (got pose null and fixed true)")
+        return cls(
+            name=d["name"],
+            category=d["category"],
+            size=(size[0], size[1]),
+            pose=pose,  # type: ignore[arg-type]
+            color=tuple(int(round(c)) for c in color),  # type: ignore[arg-type]
+            fixed=fixed,
+            shape=shape,
+            features=feats,
+            image=image,
+        )
+
+
+@dataclass
+class Scene:
+    """A set of objects inside rectangular bounds ``((xmin, ymin), (xmax, ymax))``."""
+
+    objects: list[SceneObject]
+    bounds: Bounds = DEFAULT_BOUNDS
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    # -- access ---------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.objects)
+
+    @property
+    def names(self) -> list[str]:
+        return [o.name for o in self.objects]
+
+    def index(self, name: str) -> int:
+        """Position of the object called ``name``; the error lists the names there are."""
+        for i, o in enumerate(self.objects):
+            if o.name == name:
+                return i
+        raise SceneError(f"no object named {name!r} in the scene; objects are {self.names}")
+
+    def __getitem__(self, name: str) -> SceneObject:
+        return self.objects[self.index(name)]
+
+    @property
+    def unknown(self) -> list[str]:
+        """Names of the objects whose pose is ``null``."""
+        return [o.name for o in self.objects if o.pose is None]
+
+    def poses(self, fill: float = 0.0) -> np.ndarray:
+        """Poses as ``(N, 3)``; unknown poses are filled with ``fill``."""
+        return np.array(
+            [o.pose if o.pose is not None else (fill, fill, fill) for o in self.objects], dtype=float
+        )
+
+    def sizes(self) -> np.ndarray:
+        return np.array([o.size for o in self.objects], dtype=float)
+
+    def with_poses(
+        self, poses: np.ndarray | Sequence[Sequence[float]], names: Iterable[str] | None = None
+    ) -> Scene:
+        """A copy with new poses: all of them (``(N, 3)``) or those of ``names`` in that order."""
+        out = self.copy()
+        poses = np.asarray(poses, dtype=float)
+        targets = list(range(len(out.objects))) if names is None else [out.index(n) for n in names]
+        if poses.shape != (len(targets), 3):
+            raise SceneError(f"with_poses: expected poses of shape ({len(targets)}, 3), got {poses.shape}")
+        for i, p in zip(targets, poses):
+            out.objects[i].pose = (float(p[0]), float(p[1]), float(wrap_angle(p[2])))
+        return out
+
+    def without(self, name: str) -> Scene:
+        """A copy with ``name``'s pose set to ``null`` (the object stays, its pose is to predict)."""
+        out = self.copy()
+        out.objects[out.index(name)].pose = None
+        return out
+
+    def copy(self) -> Scene:
+        return copy.deepcopy(self)
+
+    # -- JSON -----------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "objects": [o.to_dict() for o in self.objects],
+            "bounds": [list(map(float, self.bounds[0])), list(map(float, self.bounds[1]))],
+        }
+        if self.meta:
+            d["meta"] = self.meta
+        return d
+
+    def to_json(self, path: str | os.PathLike | None = None, indent: int | None = 1) -> str:
+        """Serialise; with ``path``, also write it atomically."""
+        text = json.dumps(self.to_dict(), indent=indent)
+        if path is not None:
+            atomic_write_text(path, text + "\n")
+        return text
+
+    @classmethod
+    def from_dict(cls, d: Any, source: str | None = None, line: int | None = None) -> Scene:
+        """Parse and validate a scene mapping; ``source``/``line`` go into error messages."""
+        where = _where(source, line)
+        if not isinstance(d, dict):
+            raise SceneError(f"{where}: expected a scene object with 'objects', got {type(d).__name__}")
+        unknown = set(d) - _SCENE_KEYS
+        if unknown:
+            raise SceneError(f"{where}: unknown key(s) {sorted(unknown)}; a scene has {sorted(_SCENE_KEYS)}")
+        if "objects" not in d:
+            raise SceneError(f"{where}: missing key 'objects' (a list of objects)")
+        if not isinstance(d["objects"], list):
+            raise SceneError(f"{where}: key 'objects': expected a list, got {type(d['objects']).__name__}")
+        objects = [SceneObject.from_dict(o, where, i) for i, o in enumerate(d["objects"])]
+        seen: set[str] = set()
+        for o in objects:
+            if o.name in seen:
+                raise SceneError(f"{where}: object {o.name!r}: duplicate name; names must be unique")
+            seen.add(o.name)
+        bounds = DEFAULT_BOUNDS
+        if d.get("bounds") is not None:
+            b = d["bounds"]
+            if not isinstance(b, list) or len(b) != 2:
+                raise SceneError(f"{where}: key 'bounds': expected [[xmin, ymin], [xmax, ymax]], got {b!r}")
+            lo = _vector(b[0], 2, f"{where}: key 'bounds[0]'")
+            hi = _vector(b[1], 2, f"{where}: key 'bounds[1]'")
+            if not (lo[0] < hi[0] and lo[1] < hi[1]):
+                raise SceneError(f"{where}: key 'bounds': expected min < max on both axes, got {b!r}")
+            bounds = ((lo[0], lo[1]), (hi[0], hi[1]))
+        meta = d.get("meta") or {}
+        if not isinstance(meta, dict):
+            raise SceneError(f"{where}: key 'meta': expected a mapping, got {meta!r}")
+        return cls(objects=objects, bounds=bounds, meta=meta)
+
+    @classmethod
+    def from_json(cls, path: str | os.PathLike) -> Scene:
+        """Read one scene from a JSON file (or the first line of a ``.jsonl``)."""
+        path = Path(path)
+        if not path.exists():
+            raise SceneError(f"{path}: no such file")
+        text = path.read_text()
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise SceneError(f"{path}:{e.lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
+        return cls.from_dict(data, source=str(path))
+
+
+def read_jsonl(path: str | os.PathLike) -> list[Scene]:
+    """Read a ``.jsonl`` dataset, one scene per non-empty line; errors name the file and line."""
+    path = Path(path)
+    if not path.exists():
+        raise SceneError(f"{path}: no such file")
+    scenes = []
+    with path.open() as f:
+        for lineno, line in enumerate(f, start=1):
+            if not line.strip():
+                continue
+            try:
+                data = json.loads(line)
+            except json.JSONDecodeError as e:
+                raise SceneError(f"{path}:{lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
+            scenes.append(Scene.from_dict(data, source=str(path), line=lineno))
+    if not scenes:
+        raise SceneError(f"{path}: no scenes in the file (expected one JSON scene per line)")
+    return scenes
+
+
+def write_jsonl(path: str | os.PathLike, scenes: Iterable[Scene]) -> None:
+    """Write scenes one per line, atomically."""
+    atomic_write_text(path, "".join(s.to_json(indent=None) + "\n" for s in scenes))

@@ -1,0 +1,111 @@
+"""The ``langevin`` solver: batched projected Langevin dynamics over the whole cost.
+
+Particles start uniformly inside the bounds (or from ``init``); every step is followed by the
+closed-form projections of the cost's constraints (bounds with the footprint's extent, reach) and,
+with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
+is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+from ..problem import FEASIBILITY_TOL, Problem
+from .langevin import LangevinConfig, langevin
+from .projection import LinearisedProjection
+from .result import Result, Status, few_threads, make_result
+
+__all__ = ["LangevinOptions", "LangevinSolver"]
+
+
+@dataclass
+class LangevinOptions:
+    """Options of the ``langevin`` solver (schedule fields as :class:`LangevinConfig`)."""
+
+    particles: int = 64
+    steps: int = 100
+    step_init: float = 0.05
+    step_final: float = 1e-3
+    power: float = 2.0
+    noise: float = 1.0
+    max_delta: float = 0.1
+    final_descent: int = 20
+    projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
+
+    def __post_init__(self) -> None:
+        if self.projection not in ("none", "closed_form", "qp"):
+            raise ValueError(
+                f"langevin: projection: expected 'none', 'closed_form' or 'qp', got {self.projection!r}"
+            )
+        if self.particles < 1 or self.steps < 0:
+            raise ValueError(
+                f"langevin: expected particles >= 1 and steps >= 0, got {self.particles}, {self.steps}"
+            )
+
+
+class LangevinSolver:
+    """Sampling stage: ``solve(problem, init=None, seed=0) -> Result`` with every particle in ``samples``."""
+
+    name = "langevin"
+
+    def __init__(self, **options):
+        self.options = LangevinOptions(**options)
+
+    def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
+        with few_threads():
+            return self._solve(problem, init, seed)
+
+    def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
+        o = self.options
+        t0 = time.perf_counter()
+        gen = torch.Generator().manual_seed(int(seed))
+        x0 = problem.initial(o.particles, gen) if init is None else problem.full(init)
+        movable = torch.as_tensor(problem.movable_mask)
+        terms = problem.cost.constraint_terms
+        qp = LinearisedProjection(problem) if o.projection == "qp" else None
+
+        def project(x: Tensor) -> Tensor:
+            if o.projection == "none":
+                return x
+            for c in terms:
+                x = c.project(x, movable)
+            if qp is not None:
+                x = qp(x)
+            return x
+
+        cfg = LangevinConfig(
+            steps=o.steps,
+            step_init=o.step_init,
+            step_final=o.step_final,
+            power=o.power,
+            noise=o.noise,
+            max_delta=o.max_delta,
+            final_descent=o.final_descent,
+        )
+        t1 = time.perf_counter()
+        x, e = langevin(problem.cost, project(x0), movable, problem.lo, problem.hi, cfg, gen, project=project)
+        with torch.no_grad():
+            viol = problem.violation(x)
+        ok = viol <= FEASIBILITY_TOL
+        rank = torch.where(ok, e, e + 1e12 + viol)  # feasible particles first, then by cost
+        best = int(torch.argmin(rank))
+        t2 = time.perf_counter()
+        msg = f"{int(ok.sum())} of {len(e)} particles within the violation tolerance"
+        if qp is not None:
+            msg += f"; {qp.qp_solves} projection QPs"
+        return make_result(
+            problem,
+            self.name,
+            x[best],
+            Status.SAMPLED,
+            o.steps + o.final_descent,
+            t1 - t0,
+            t2 - t1,
+            message=msg if not ok[best] else "",
+            samples=x,
+            sample_costs=e,
+        )

@@ -1,0 +1,126 @@
+"""The energy network: invariances, gradients, checkpoints, determinism."""
+
+import math
+
+import pytest
+import torch
+
+from scenescore.encoders import FootprintEncoder
+from scenescore.models import CheckpointError, ScoreModel, load
+from scenescore.scenarios import DiningScenario
+
+
+def _model(**kw):
+    torch.manual_seed(0)
+    return ScoreModel.create(FootprintEncoder(), hidden=16, embed_dim=8, layers=2, **kw)
+
+
+def _rigid(poses, angle, shift):
+    c, s = math.cos(angle), math.sin(angle)
+    rot = torch.tensor([[c, -s], [s, c]], dtype=poses.dtype)
+    xy = poses[..., :2] @ rot.T + torch.tensor(shift, dtype=poses.dtype)
+    return torch.cat([xy, poses[..., 2:] + angle], dim=-1)
+
+
+@pytest.mark.parametrize("message", ["mlp", "linear"])
+@pytest.mark.parametrize("activation", ["silu", "leaky_relu"])
+def test_energy_invariant_to_rigid_motion_and_permutation(message, activation):
+    model = _model(message=message, activation=activation)
+    scene = DiningScenario().generate(1, seed=0)[0]
+    st = model.tensors([scene])
+    x = st.poses.double()
+    model.net.double()
+    st = model.tensors([scene])
+    e0 = model.energy(x, st)
+    for angle, shift in [(0.7, (0.3, -0.2)), (-2.5, (1.0, 2.0)), (math.pi, (0.0, 0.0))]:
+        assert torch.allclose(model.energy(_rigid(x, angle, shift), st), e0, atol=1e-10)
+    perm = torch.randperm(len(scene), generator=torch.Generator().manual_seed(1))
+    st_p = model.tensors([scene])
+    st_p.feats, st_p.sizes = st.feats[:, perm], st.sizes[:, perm]
+    assert torch.allclose(model.energy(x[:, perm], st_p), e0, atol=1e-10)
+    # and it does depend on the arrangement
+    x2 = x.clone()
+    x2[0, 1, :2] += 0.1
+    assert not torch.allclose(model.energy(x2, st), e0, atol=1e-6)
+
+
+def test_abs_ablation_is_permutation_but_not_rigid_invariant():
+    model = _model(absolute=True)
+    model.net.double()
+    scene = DiningScenario().generate(1, seed=0)[0]
+    st = model.tensors([scene])
+    x = st.poses
+    e0 = model.energy(x, st)
+    perm = torch.tensor([3, 1, 0, 2, 7, 6, 5, 4])
+    st_p = model.tensors([scene])
+    st_p.feats, st_p.sizes = st.feats[:, perm], st.sizes[:, perm]
+    assert torch.allclose(model.energy(x[:, perm], st_p), e0, atol=1e-10)
+    assert not torch.allclose(model.energy(_rigid(x, 0.7, (0.3, -0.2)), st), e0, atol=1e-6)
+
+
+def test_padding_does_not_change_energy():
+    model = _model()
+    model.net.double()
+    small, big = DiningScenario(settings=1).generate(1, 0)[0], DiningScenario().generate(1, 1)[0]
+    st = model.tensors([small, big])
+    alone = model.tensors([small])
+    assert torch.allclose(model.energy(st.poses[:1, : len(small)], alone), model.energy(st.poses, st)[:1])
+
+
+def test_energy_gradient_gradcheck_float64():
+    model = _model()
+    model.net.double()
+    scene = DiningScenario().generate(1, seed=2)[0]
+    fn = model.energy_fn(scene)
+    x = model.tensors([scene]).poses.repeat(2, 1, 1).clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(fn, (x,), eps=1e-6, atol=1e-6)
+
+
+def test_checkpoint_round_trip(tmp_path):
+    model = _model(activation="softplus")
+    scene = DiningScenario().generate(1, seed=0)[0]
+    st = model.tensors([scene])
+    path = tmp_path / "m.ckpt"
+    model.info = {"note": "hello"}
+    model.save(path)
+    back = load(path)
+    assert back.config == model.config and back.info == {"note": "hello"}
+    assert torch.equal(back.energy(st.poses, st), model.energy(st.poses, st))
+    assert not list(tmp_path.glob(".*tmp"))  # the temporary file was renamed away
+
+
+def test_checkpoint_refuses_unknown_version_and_garbage(tmp_path):
+    from safetensors.torch import save_file
+
+    model = _model()
+    path = tmp_path / "future.ckpt"
+    model.save(path)
+    from safetensors import safe_open
+
+    with safe_open(str(path), "pt") as f:
+        meta, tensors = f.metadata(), {k: f.get_tensor(k) for k in f.keys()}
+    meta["format_version"] = "99"
+    save_file(tensors, str(path), metadata=meta)
+    with pytest.raises(CheckpointError, match="format version '99' is not supported"):
+        load(path)
+    (tmp_path / "junk.ckpt").write_bytes(b"not a checkpoint at all")
+    with pytest.raises(CheckpointError, match="junk.ckpt: not a scenescore checkpoint"):
+        load(tmp_path / "junk.ckpt")
+    with pytest.raises(CheckpointError, match="no such checkpoint"):
+        load(tmp_path / "nope.ckpt")
+
+
+def test_failed_save_keeps_previous_file(tmp_path, monkeypatch):
+    model = _model()
+    path = tmp_path / "m.ckpt"
+    model.save(path)
+    before = path.read_bytes()
+    import os
+
+    def boom(*a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError):
+        model.save(path)
+    assert path.read_bytes() == before
