@@ -6,9 +6,21 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 from ..scene import Scene, SceneError
+from .desk import DeskScenario
 from .dining import DiningScenario
+from .ordering import OrderingScenario
+from .tv import TVScenario
 
-__all__ = ["Scenario", "register", "get", "available", "DiningScenario"]
+__all__ = [
+    "Scenario",
+    "register",
+    "get",
+    "available",
+    "DiningScenario",
+    "OrderingScenario",
+    "TVScenario",
+    "DeskScenario",
+]
 
 
 class Scenario(Protocol):
@@ -23,7 +35,12 @@ class Scenario(Protocol):
     def oracle(self, scene: Scene, name: str) -> tuple[float, float, float]: ...
 
 
-_REGISTRY: dict[str, Callable[..., Any]] = {"dining": DiningScenario}
+_REGISTRY: dict[str, Callable[..., Any]] = {
+    "dining": DiningScenario,
+    "ordering": OrderingScenario,
+    "tv": TVScenario,
+    "desk": DeskScenario,
+}
 
 
 def register(name: str, factory: Callable[..., Any]) -> None:

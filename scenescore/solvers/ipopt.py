@@ -24,7 +24,7 @@ from torch import Tensor
 from ..costs import Bounds, HingeCollision, LearnedEnergy, PoseTarget, ReachLimit
 from ..costs.geometry import footprint_core
 from ..problem import Problem
-from .result import Result, Status, few_threads, make_result
+from .result import Result, StageSolver, Status, make_result
 from .sqp import _start
 
 __all__ = ["CasadiOptions", "CasadiSolver", "energy_mx"]
@@ -281,17 +281,11 @@ class _Built:
         return np.concatenate([z0, np.array(extra)])
 
 
-class CasadiSolver:
+class CasadiSolver(StageSolver):
     """Refinement stage: ``solve(problem, init=None, seed=0) -> Result``."""
 
     name = "casadi"
-
-    def __init__(self, **options):
-        self.options = CasadiOptions(**options)
-
-    def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
-        with few_threads():
-            return self._solve(problem, init, seed)
+    options_cls = CasadiOptions
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         t0 = time.perf_counter()

@@ -14,7 +14,7 @@ import torch
 from ..problem import FEASIBILITY_TOL, Problem
 from ..scene import Scene
 
-__all__ = ["Result", "Status", "make_result", "few_threads"]
+__all__ = ["Result", "StageSolver", "Status", "make_result", "few_threads"]
 
 
 @contextmanager
@@ -28,6 +28,25 @@ def few_threads(n: int = 1):
         yield
     finally:
         torch.set_num_threads(old)
+
+
+class StageSolver:
+    """Base of the solvers: options from keyword arguments (``options_cls``), and ``solve`` run on one
+    torch thread around the subclass's ``_solve``."""
+
+    name = "stage"
+    options_cls: type
+
+    def __init__(self, **options):
+        self.options = self.options_cls(**options)
+
+    def solve(self, problem, init=None, seed: int = 0) -> Result:
+        """``solve(problem, init=None, seed=0) -> Result``."""
+        with few_threads():
+            return self._solve(problem, init, seed)
+
+    def _solve(self, problem, init, seed: int) -> Result:
+        raise NotImplementedError
 
 
 class Status:

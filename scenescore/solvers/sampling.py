@@ -17,7 +17,7 @@ from torch import Tensor
 from ..problem import FEASIBILITY_TOL, Problem
 from .langevin import LangevinConfig, langevin
 from .projection import LinearisedProjection
-from .result import Result, Status, few_threads, make_result
+from .result import Result, StageSolver, Status, make_result
 
 __all__ = ["LangevinOptions", "LangevinSolver"]
 
@@ -47,17 +47,11 @@ class LangevinOptions:
             )
 
 
-class LangevinSolver:
+class LangevinSolver(StageSolver):
     """Sampling stage: ``solve(problem, init=None, seed=0) -> Result`` with every particle in ``samples``."""
 
     name = "langevin"
-
-    def __init__(self, **options):
-        self.options = LangevinOptions(**options)
-
-    def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
-        with few_threads():
-            return self._solve(problem, init, seed)
+    options_cls = LangevinOptions
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         o = self.options

@@ -23,7 +23,7 @@ from torch import Tensor
 
 from ..problem import FEASIBILITY_TOL, Problem
 from .projection import ANGLE_WEIGHT
-from .result import Result, Status, few_threads, make_result
+from .result import Result, StageSolver, Status, make_result
 
 __all__ = ["SQPOptions", "OSQPSolver"]
 
@@ -90,17 +90,11 @@ class _Model:
         return torch.cat(gs).numpy(), j.numpy()
 
 
-class OSQPSolver:
+class OSQPSolver(StageSolver):
     """Refinement stage: ``solve(problem, init=None, seed=0) -> Result``."""
 
     name = "osqp"
-
-    def __init__(self, **options):
-        self.options = SQPOptions(**options)
-
-    def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
-        with few_threads():
-            return self._solve(problem, init, seed)
+    options_cls = SQPOptions
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         o = self.options
