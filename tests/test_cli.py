@@ -13,7 +13,10 @@ def trained(tmp_path_factory):
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("cli")
     assert main(["generate", "dining", "--n", "6", "--out", str(d / "data.jsonl"), "--seed", "1"]) == 0
-    assert main(["train", str(d / "data.jsonl"), "--out", str(d / "m.ckpt"), "--iterations", "5", "--quiet"]) == 0
+    assert (
+        main(["train", str(d / "data.jsonl"), "--out", str(d / "m.ckpt"), "--iterations", "5", "--quiet"])
+        == 0
+    )
     return d
 
 
@@ -23,8 +26,20 @@ def test_generate_train_place(trained, capsys):
     scene = json.loads(lines[0])
     scene["objects"][1]["pose"] = None
     (d / "q.json").write_text(json.dumps(scene))
-    rc = main(["place", str(d / "m.ckpt"), str(d / "q.json"), "--out", str(d / "f.json"),
-               "--plot", str(d / "f.png"), "--particles", "8", "--quiet"])
+    rc = main(
+        [
+            "place",
+            str(d / "m.ckpt"),
+            str(d / "q.json"),
+            "--out",
+            str(d / "f.json"),
+            "--plot",
+            str(d / "f.png"),
+            "--particles",
+            "8",
+            "--quiet",
+        ]
+    )
     assert rc == 0
     filled = json.loads((d / "f.json").read_text())
     assert all(o["pose"] is not None for o in filled["objects"])
@@ -54,8 +69,20 @@ def test_user_errors_are_one_line(trained, tmp_path, capsys):
 def test_experiment_missing_quick_writes_outputs(tmp_path):
     torch.set_num_threads(1)
     out = tmp_path / "exp"
-    rc = main(["experiment", "missing", "--seeds", "1", "--quick", "--methods", "Nearest-Nbr,Oracle",
-               "--out", str(out), "--quiet"])
+    rc = main(
+        [
+            "experiment",
+            "missing",
+            "--seeds",
+            "1",
+            "--quick",
+            "--methods",
+            "Nearest-Nbr,Oracle",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert rc == 0
     rows = json.loads((out / "results.json").read_text())
     assert [r["method"] for r in rows] == ["Nearest-Nbr", "Oracle"]
