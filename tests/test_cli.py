@@ -97,3 +97,21 @@ def test_help_lists_commands(capsys):
     out = capsys.readouterr().out
     for cmd in ("demo", "generate", "train", "place", "solve", "compare", "experiment"):
         assert cmd in out
+
+
+def test_generate_images_and_train_on_the_folder(tmp_path, capsys):
+    torch.set_num_threads(1)
+    imgs = tmp_path / "imgs"
+    assert main(["generate", "dining", "--n", "2", "--images", str(imgs), "--quiet"]) == 0
+    assert sorted(p.name for p in imgs.glob("*.png")) == [
+        "scene_00000.masks.png",
+        "scene_00000.png",
+        "scene_00001.masks.png",
+        "scene_00001.png",
+    ]
+    ckpt = tmp_path / "m.ckpt"
+    assert main(["train", str(imgs), "--out", str(ckpt), "--iterations", "2", "--quiet"]) == 0
+    from scenescore.models import load
+
+    assert load(ckpt).encoder.name == "image"  # a folder of images trains on the image encoder's vectors
+    assert "trained on 2 scenes" in capsys.readouterr().out

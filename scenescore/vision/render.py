@@ -171,19 +171,25 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 
 
 def write_rendered_dataset(
-    scenes: Sequence[Scene], out_dir: str | os.PathLike, ppm: float = DEFAULT_PPM, masks: bool = True
+    scenes: Sequence[Scene],
+    out_dir: str | os.PathLike,
+    ppm: float = DEFAULT_PPM,
+    masks: bool = True,
+    progress: bool = False,
 ) -> list[Path]:
     """Render ``scenes`` into ``out_dir``: per scene ``scene_00000.png`` and ``scene_00000.json``.
 
     The JSON is the ground-truth scene with ``meta.image`` (the PNG's file name) and ``meta.ppm``.
     With ``masks``, ``scene_00000.masks.png`` holds the instance masks as a 16-bit label image
     (0: table, ``k``: the scene's object ``k - 1``). ``dataset.json`` lists the images and the ppm.
-    Returns the paths of the images written.
+    Returns the paths of the images written. ``progress``: a progress bar.
     """
+    from tqdm.auto import tqdm
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    for k, scene in enumerate(scenes):
+    for k, scene in enumerate(tqdm(scenes, desc="render", unit="image", disable=not progress)):
         stem = f"scene_{k:05d}"
         image, ms = render_scene(scene, ppm)
         write_image(out / f"{stem}.png", image)
