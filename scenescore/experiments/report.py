@@ -6,10 +6,13 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
 
 from ..scene import atomic_write_text
 
-__all__ = ["Row", "format_table", "write_results"]
+__all__ = ["Row", "SeedResults", "format_table", "write_results"]
 
 
 @dataclass
@@ -28,6 +31,27 @@ class Row:
         if self.paper:
             d["paper"] = self.paper
         return d
+
+
+@dataclass
+class SeedResults:
+    """Per-method, per-seed figures; :meth:`rows` averages over seeds and adds ``<key>_std`` for the
+    keys in ``spread`` (every key when ``None``) and the paper's figures from ``paper``."""
+
+    per_seed: dict[str, list[dict[str, float]]] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+    paper: ClassVar[dict[str, dict[str, float]]] = {}
+    spread: ClassVar[tuple[str, ...] | None] = None
+
+    def rows(self) -> list[Row]:
+        rows = []
+        for method, runs in self.per_seed.items():
+            fig = {k: float(np.mean([r[k] for r in runs])) for k in runs[0]}
+            for k in self.spread if self.spread is not None else list(runs[0]):
+                fig[f"{k}_std"] = float(np.std([r[k] for r in runs]))
+            fig["seconds"] = self.seconds.get(method, 0.0)
+            rows.append(Row(method, fig, self.paper.get(method, {})))
+        return rows
 
 
 def _fmt(v: float | None, digits: int = 2) -> str:
