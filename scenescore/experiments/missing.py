@@ -105,7 +105,7 @@ class OraclePlacer:
 def _methods(
     scenario: DiningScenario, quick: bool, encoder: Encoder | None
 ) -> dict[str, Callable[[], Placer]]:
-    from ..baselines import NearestNeighbour
+    from ..baselines import NearestNeighbour, NeatNet, NeatNetConfig
 
     tc = TrainConfig(iterations=150) if quick else TrainConfig()
 
@@ -114,6 +114,7 @@ def _methods(
         return SceneScorePlacer(name, cfg, encoder=encoder)
 
     return {
+        "NeatNet": lambda: NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)),
         "Nearest-Nbr": NearestNeighbour,
         "SceneScore-Abs": lambda: scenescore("SceneScore-Abs", absolute=True),
         "SceneScore (LeakyReLU)": lambda: scenescore("SceneScore (LeakyReLU)", activation="leaky_relu"),
@@ -122,7 +123,7 @@ def _methods(
     }
 
 
-METHODS = ["Nearest-Nbr", "SceneScore-Abs", "SceneScore (LeakyReLU)", "SceneScore", "Oracle"]
+METHODS = ["NeatNet", "Nearest-Nbr", "SceneScore-Abs", "SceneScore (LeakyReLU)", "SceneScore", "Oracle"]
 
 
 class MissingResult(SeedResults):

@@ -1,0 +1,20 @@
+"""Experiment 3 (Fig. 4): rows, figures, the PNG and the CLI's report.md."""
+
+import torch
+
+from scenescore.experiments import compose
+
+
+def test_compose_quick_rows_and_plot(tmp_path):
+    torch.set_num_threads(1)
+    res = compose.run(seeds=1, quick=True, progress=False, levels=[0, 1], samples=8, refine=1)
+    rows = {r.method: r.figures for r in res.rows()}
+    assert set(rows) == set(compose.METHODS)
+    for fig in rows.values():
+        for n in (0, 1):
+            assert 0 <= fig[f"correct_at_{n}_objects"] <= res.samples
+        assert fig["seconds"] > 0
+    md = compose.format_compose(res)
+    assert "SceneScore (langevin>casadi)" in md and "1 clutter" in md
+    compose.plot_compose(res, tmp_path / "fig4.png")
+    assert (tmp_path / "fig4.png").read_bytes()[:4] == b"\x89PNG"
