@@ -5,8 +5,12 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from . import UserError, add_common
+
+if TYPE_CHECKING:
+    from ..experiments.report import Row
 
 EXPERIMENTS = ["missing", "novel", "heatmap", "compose"]
 
@@ -37,6 +41,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from ..experiments.report import write_results
+
     if args.seeds < 1:
         raise UserError(f"--seeds must be at least 1, got {args.seeds}")
     names = EXPERIMENTS if args.name == "all" else [args.name]
@@ -46,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
         if args.name == "all":
             out = (args.out or Path("runs") / "experiment-all") / name
         t0 = time.perf_counter()
-        md = RUNNERS[name](args, out)
+        torch.manual_seed(args.seed)
+        md, rows = RUNNERS[name](args, out)
+        write_results(out, rows, md)
         print(md)
         dt = time.perf_counter() - t0
         print(f"\n{name}: {dt:.0f} s; wrote {out}/table.md and {out}/results.json")
@@ -68,14 +78,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _missing(args: argparse.Namespace, out: Path) -> str:
-    import torch
+def _methods(args: argparse.Namespace) -> list[str] | None:
+    """``--methods`` as a list (``None``: every method of the experiment)."""
+    return args.methods.split(",") if args.methods else None
 
+
+def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import missing
-    from ..experiments.report import write_results
 
-    torch.manual_seed(args.seed)
-    methods = args.methods.split(",") if args.methods else None
     scenes_fn, encoder = None, None
     if args.from_images:
         from ..encoders import make_encoder
@@ -88,7 +98,7 @@ def _missing(args: argparse.Namespace, out: Path) -> str:
 
     res = missing.run(
         seeds=args.seeds,
-        methods=methods,
+        methods=_methods(args),
         quick=args.quick,
         progress=not args.quiet,
         scenes_fn=scenes_fn,
@@ -104,51 +114,34 @@ def _missing(args: argparse.Namespace, out: Path) -> str:
         f"mean ± std over {args.seeds} seed(s); the paper's figures in brackets.\n\n"
     )
     md += missing.format_missing(res)
-    write_results(out, res.rows(), md)
-    return md
+    return md, res.rows()
 
 
-def _novel(args: argparse.Namespace, out: Path) -> str:
-    import torch
-
+def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import novel
-    from ..experiments.report import write_results
 
-    torch.manual_seed(args.seed)
-    methods = args.methods.split(",") if args.methods else None
-    res = novel.run(seeds=args.seeds, methods=methods, quick=args.quick, progress=not args.quiet)
+    res = novel.run(seeds=args.seeds, methods=_methods(args), quick=args.quick, progress=not args.quiet)
     md = "## Table 2: novel objects (ordered rows of cutlery)\n\n"
     md += (
         "Mean position error in cm of a removed piece of cutlery, per ordering rule; test sizes never "
         f"seen in training; mean ± std over {args.seeds} seed(s); the paper's figures in brackets.\n\n"
     )
     md += novel.format_novel(res)
-    write_results(out, res.rows(), md)
-    return md
+    return md, res.rows()
 
 
-def _heatmap(args: argparse.Namespace, out: Path) -> str:
-    import torch
-
+def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import heatmap
-    from ..experiments.report import write_results
 
-    torch.manual_seed(args.seed)
     res = heatmap.run(seeds=args.seeds, quick=args.quick, progress=not args.quiet, out=out)
     md = heatmap.format_heatmap(res)
-    write_results(out, res.rows(), md)
-    return md
+    return md, res.rows()
 
 
-def _compose(args: argparse.Namespace, out: Path) -> str:
-    import torch
-
+def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import compose
-    from ..experiments.report import write_results
 
-    torch.manual_seed(args.seed)
-    methods = args.methods.split(",") if args.methods else None
-    res = compose.run(seeds=args.seeds, methods=methods, quick=args.quick, progress=not args.quiet)
+    res = compose.run(seeds=args.seeds, methods=_methods(args), quick=args.quick, progress=not args.quiet)
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
     md = "## Fig. 4: composing with constraints (television, speakers, clutter)\n\n"
@@ -159,8 +152,7 @@ def _compose(args: argparse.Namespace, out: Path) -> str:
     md += (
         compose.format_compose(res) + "\n\nFigure: fig4.png (correct samples against the number of objects)."
     )
-    write_results(out, res.rows(), md)
-    return md
+    return md, res.rows()
 
 
 RUNNERS = {"missing": _missing, "novel": _novel, "heatmap": _heatmap, "compose": _compose}

@@ -23,7 +23,7 @@ from ..scene import Scene, SceneError
 from ..training import TrainConfig
 from .report import SeedResults, format_table
 
-__all__ = ["PAPER", "MissingCase", "make_cases", "score_cases", "run", "METHODS"]
+__all__ = ["PAPER", "MissingCase", "make_cases", "score_cases", "fit_predict", "run", "METHODS"]
 
 # The paper's Table 1 (mean over bowl, fork, knife): position cm, orientation deg
 PAPER: dict[str, dict[str, float]] = {
@@ -133,6 +133,19 @@ class MissingResult(SeedResults):
     spread = ("mean_t_cm", "mean_R_deg")
 
 
+def fit_predict(
+    factory: Callable[[], Placer], train: list[Scene], cases: list[MissingCase], seed: int, progress: bool
+) -> tuple[list[Scene], float]:
+    """Build a method, fit it on ``train``, fill the cases' missing poses; returns them and the seconds taken."""
+    t0 = time.perf_counter()
+    method = factory()
+    if isinstance(method, SceneScorePlacer):
+        method.progress = progress
+    method.fit(train, seed=seed)
+    pred = method.predict([c.scene for c in cases], seed=seed)
+    return pred, time.perf_counter() - t0
+
+
 def run(
     seeds: int = 3,
     methods: list[str] | None = None,
@@ -160,14 +173,8 @@ def run(
         for c, tc in zip(cases, truth_cases):
             c.truth = tc.truth
         for m in chosen:
-            t0 = time.perf_counter()
-            method = table[m]()
-            if isinstance(method, SceneScorePlacer):
-                method.progress = progress
-            method.fit(train_s, seed=seed)
-            pred = method.predict([c.scene for c in cases], seed=seed)
+            pred, dt = fit_predict(table[m], train_s, cases, seed, progress)
             figs = score_cases(cases, pred, scenario.symmetric)
-            dt = time.perf_counter() - t0
             res.per_seed.setdefault(m, []).append(figs)
             res.seconds[m] = res.seconds.get(m, 0.0) + dt
             log(

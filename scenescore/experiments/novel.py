@@ -9,7 +9,6 @@ in cm per rule, then the mean over rules; mean +- std over seeds.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -20,7 +19,7 @@ from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
-from .missing import OraclePlacer, make_cases
+from .missing import OraclePlacer, fit_predict, make_cases
 from .report import SeedResults, format_table
 
 __all__ = ["PAPER", "METHODS", "run", "NovelResult", "format_novel", "table_columns"]
@@ -101,14 +100,8 @@ def run(
                 test_s = test_s[:n_test]
             cases = make_cases(test_s, sc.missing)
             for m in chosen:
-                t0 = time.perf_counter()
-                method = table[m]()
-                if isinstance(method, SceneScorePlacer):
-                    method.progress = progress
-                method.fit(train_s, seed=seed)
-                pred = method.predict([c.scene for c in cases], seed=seed)
+                pred, dt = fit_predict(table[m], train_s, cases, seed, progress)
                 err = position_error_cm(cases, pred)
-                dt = time.perf_counter() - t0
                 figs[m][f"{rule}_cm"] = err
                 res.seconds[m] = res.seconds.get(m, 0.0) + dt
                 log(f"seed {seed} {rule:13s} {m:12s} {err:6.2f} cm  ({dt:.0f} s)")
