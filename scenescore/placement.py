@@ -10,7 +10,7 @@ import torch
 from .encoders import Encoder
 from .models import SceneTensors, ScoreModel
 from .scene import Scene, SceneError
-from .solvers.langevin import LangevinConfig, best_of, langevin, uniform_init
+from .solvers.langevin import LangevinConfig, best_of, langevin, screen, uniform_init
 from .training import TrainConfig, train
 
 __all__ = ["PlaceConfig", "place", "place_many", "Placer", "SceneScorePlacer"]
@@ -85,27 +85,14 @@ def _screened_init(model: ScoreModel, st: SceneTensors, m: int, p: int, gen: tor
     Returns ``(G * P, N, 3)``, scenes in contiguous groups of ``p``.
     """
     g, n = st.mask.shape
-    chunk = 1024
     keep = []
-    with torch.no_grad():
-        for k in range(g):
-            one = st.index([k])
-            nodes = model.net.node_embedding(one.feats, one.sizes)
-            draws = uniform_init((m, n), one.lo[0], one.hi[0], gen, dtype=one.poses.dtype)
-            draws = torch.where(one.known[0][None, :, None], one.poses[0][None], draws)
-            e = torch.cat(
-                [
-                    model.net(
-                        draws[i : i + chunk],
-                        None,
-                        None,
-                        one.mask.expand(len(draws[i : i + chunk]), -1),
-                        nodes=nodes,
-                    )
-                    for i in range(0, m, chunk)
-                ]
-            )  # type: ignore[arg-type]
-            keep.append(draws[e.argsort()[:p]])
+    for k in range(g):
+        one = st.index([k])
+        draws = uniform_init((m, n), one.lo[0], one.hi[0], gen, dtype=one.poses.dtype)
+        draws = torch.where(one.known[0][None, :, None], one.poses[0][None], draws)
+        with torch.no_grad():
+            fn = model.energy_fn_for(one)
+        keep.append(screen(fn, draws, p))
     return torch.cat(keep)
 
 

@@ -193,7 +193,7 @@ class Problem:
 #   model: model.ckpt            # needed by an `energy` cost
 #   movable: [mug]               # optional; objects with pose null always move
 #   costs:
-#     - {type: energy, weight: 1.0}
+#     - {type: energy, weight: 1.0}          # objects: [mug, plate_0] restricts what it sees
 #     - {type: collision, weight: 10.0, margin: 0.01}
 #     - {type: bounds}
 #     - {type: reach, base: [0.0, -0.5], radius: 0.8}
@@ -220,6 +220,7 @@ class _Strict(BaseModel):
 class EnergySpec(_Strict):
     type: Literal["energy"]
     weight: float = Field(1.0, ge=0)
+    objects: list[str] | None = None  # the objects the energy sees (default: all)
     name: str | None = None
 
 
@@ -430,6 +431,8 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
                 from .models import load
 
                 model = load(mp)
+            if c.objects is not None:
+                kw["objects"] = [obj(nm, (*at, "objects", i)) for i, nm in enumerate(c.objects)]
             term: Cost = C.LearnedEnergy(model, **kw)
         elif isinstance(c, CollisionSpec):
             pairs = (

@@ -70,3 +70,14 @@ def test_fixed_objects_never_move():
     (x0, y0), (x1, y1) = s.bounds
     x, y, _ = out["b"].pose
     assert x0 <= x <= x1 and y0 <= y <= y1
+
+
+def test_feature_noise_is_seeded_and_changes_training():
+    torch.set_num_threads(1)
+    scenes = _offset_scenes(6, 1)
+    cfg = TrainConfig(iterations=5, batch_scenes=4, negatives=4, model={"hidden": 16, "layers": 1})
+    quiet = TrainConfig(**{**cfg.to_dict(), "feature_noise": 0.0})
+    a, b = (train(scenes, cfg, seed=2, progress=False) for _ in range(2))
+    c = train(scenes, quiet, seed=2, progress=False)
+    pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
+    assert torch.equal(pa, pb) and not torch.equal(pa, pc)

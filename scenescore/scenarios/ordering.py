@@ -33,7 +33,7 @@ CUTLERY: dict[str, tuple[float, tuple[int, int, int]]] = {
 }
 TRAIN_LENGTHS = (0.14, 0.16, 0.18, 0.20, 0.22, 0.24)
 TEST_LENGTHS = (0.15, 0.17, 0.19, 0.21, 0.23)
-BOARD = ((0.04, 0.30), (120, 80, 50))
+BOARD = ((0.30, 0.04), (120, 80, 50))  # (length along its heading, width): a bar along +y like the cutlery
 
 
 @dataclass

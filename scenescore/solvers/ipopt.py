@@ -187,7 +187,8 @@ class _Built:
         exact = True
         for w, c in problem.cost.objective_items:
             if isinstance(c, LearnedEnergy) and opts.energy == "mx":
-                f = f + w * energy_mx(c.model, scene, poses)
+                seen = ca.vertcat(*[poses[i, :] for i in c.visible])
+                f = f + w * energy_mx(c.model, c.visible_scene, seen)
             elif isinstance(c, PoseTarget):
                 d = poses[c._i, :2] - ca.DM(c.xy).T
                 th = 0.0 if c.theta is None else c.theta

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-__all__ = ["LangevinConfig", "langevin", "uniform_init", "best_of"]
+__all__ = ["LangevinConfig", "langevin", "uniform_init", "best_of", "screen", "resample"]
 
 
 @dataclass
@@ -29,6 +29,8 @@ class LangevinConfig:
     noise: float = 1.0  # sigma of w_t
     max_delta: float = 0.1  # clip on one step's move per coordinate at lambda_0 (normalised units)
     final_descent: int = 0  # noise-free gradient steps at lambda_T after the chain
+    resample: int = 0  # population resampling points, evenly spaced in the chain (0: independent chains)
+    temperature: float = 1.0  # of the resampling weights softmax(-E / temperature)
 
     def step_size(self, t: int | Tensor) -> float | Tensor:
         """``lambda_t``, decaying from ``step_init`` to ``step_final`` over ``steps`` (then constant)."""
@@ -61,6 +63,29 @@ def uniform_init(
     return torch.cat([xy, th], dim=-1)
 
 
+def screen(energy_fn: Callable[[Tensor], Tensor], draws: Tensor, keep: int, chunk: int = 1024) -> Tensor:
+    """The ``keep`` of ``draws (M, N, 3)`` with the lowest energy (forward passes only, in chunks): ``(keep, N, 3)``."""
+    return draws[_energies(energy_fn, draws, chunk).argsort()[:keep]]
+
+
+def _energies(energy_fn: Callable[[Tensor], Tensor], x: Tensor, chunk: int) -> Tensor:
+    with torch.no_grad():
+        e = torch.cat([energy_fn(x[i : i + chunk]) for i in range(0, len(x), chunk)])
+    return torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+
+
+def resample(x: Tensor, e: Tensor, temperature: float, groups: int, generator: torch.Generator) -> Tensor:
+    """Systematic resampling of particles ``x (G * P, ...)`` within each contiguous group of ``P`` by
+    weights ``softmax(-e / temperature)``: particles in low-cost basins are copied, the rest dropped."""
+    p = x.shape[0] // groups
+    e = e.reshape(groups, p)
+    e = torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+    w = torch.softmax(-(e - e.min(dim=1, keepdim=True).values) / temperature, dim=1)  # (G, P)
+    u = (torch.rand(groups, 1, generator=generator, dtype=w.dtype) + torch.arange(p, dtype=w.dtype)) / p
+    idx = torch.searchsorted(torch.cumsum(w, dim=1), u).clamp(max=p - 1)  # (G, P)
+    return x[(idx + p * torch.arange(groups)[:, None]).flatten()]
+
+
 def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> tuple[Tensor, Tensor]:
     with torch.enable_grad():
         x = x.detach().requires_grad_(True)
@@ -84,12 +109,14 @@ def langevin(
     project: Callable[[Tensor], Tensor] | None = None,
     age: Tensor | None = None,
     run_steps: int | None = None,
+    groups: int = 1,
 ) -> tuple[Tensor, Tensor]:
     """Run the chain from ``init (B, N, 3)``; returns final poses and their energies ``(B,)``.
 
     ``movable``: ``(N,)`` or ``(B, N)`` bool; ``lo``/``hi``: ``(2,)`` or ``(B, 2)`` position bounds.
     ``age``: ``(B,)`` steps each chain has already run (persistent chains continue their schedule);
     ``run_steps``: how many steps to run now (default ``cfg.steps``, the schedule's length).
+    ``groups``: particles form this many contiguous groups (one per scene) for ``cfg.resample``.
     No gradient flows through the chain.
     """
     cfg = cfg or LangevinConfig()
@@ -123,7 +150,14 @@ def langevin(
             x = project(x)
         return x
 
-    for t in range(cfg.steps if run_steps is None else run_steps):
+    total = cfg.steps if run_steps is None else run_steps
+    if cfg.resample and age is not None:
+        raise ValueError("langevin: population resampling needs one schedule for all chains (age=None)")
+    marks = {round(total * (k + 1) / (cfg.resample + 1)) for k in range(cfg.resample)}
+    for t in range(total):
+        if t in marks:
+            with torch.no_grad():
+                x = resample(x, energy_fn(x), cfg.temperature, groups, generator)
         if age is None:
             lam: float | Tensor = cfg.step_size(t)
         else:

@@ -1,9 +1,15 @@
 """The ``langevin`` solver: batched projected Langevin dynamics over the whole cost.
 
-Particles start uniformly inside the bounds (or from ``init``); every step is followed by the
+Particles start uniformly inside the bounds, the best ``particles`` of ``candidates`` uniform draws
+by cost when ``candidates`` is set, or from ``init``; every step is followed by the
 closed-form projections of the cost's constraints (bounds with the footprint's extent, reach) and,
 with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
 is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost.
+
+With ``resample=k`` the particles are a population: ``k`` times during the chain they are resampled
+by ``softmax(-cost / temperature)``, so particles stuck in high-cost basins are replaced by copies of
+those in low-cost ones (population annealing). Far more samples end in good basins; fewer of them are
+distinct.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import torch
 from torch import Tensor
 
 from ..problem import FEASIBILITY_TOL, Problem
-from .langevin import LangevinConfig, langevin
+from .langevin import LangevinConfig, langevin, screen
 from .projection import LinearisedProjection
 from .result import Result, StageSolver, Status, make_result
 
@@ -27,6 +33,7 @@ class LangevinOptions:
     """Options of the ``langevin`` solver (schedule fields as :class:`LangevinConfig`)."""
 
     particles: int = 64
+    candidates: int = 0  # uniform draws screened by cost (forward only) for the particles' start; 0: none
     steps: int = 100
     step_init: float = 0.05
     step_final: float = 1e-3
@@ -34,6 +41,8 @@ class LangevinOptions:
     noise: float = 1.0
     max_delta: float = 0.1
     final_descent: int = 20
+    resample: int = 0  # population resampling points in the chain (0: independent chains)
+    temperature: float = 1.0  # of the resampling weights softmax(-cost / temperature)
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
 
     def __post_init__(self) -> None:
@@ -41,10 +50,13 @@ class LangevinOptions:
             raise ValueError(
                 f"langevin: projection: expected 'none', 'closed_form' or 'qp', got {self.projection!r}"
             )
-        if self.particles < 1 or self.steps < 0:
+        if self.particles < 1 or self.steps < 0 or self.candidates < 0 or self.resample < 0:
             raise ValueError(
-                f"langevin: expected particles >= 1 and steps >= 0, got {self.particles}, {self.steps}"
+                "langevin: expected particles >= 1 and steps, candidates, resample >= 0, got "
+                f"{self.particles}, {self.steps}, {self.candidates}, {self.resample}"
             )
+        if not self.temperature > 0:
+            raise ValueError(f"langevin: temperature: expected > 0, got {self.temperature!r}")
 
 
 class LangevinSolver(StageSolver):
@@ -57,8 +69,13 @@ class LangevinSolver(StageSolver):
         o = self.options
         t0 = time.perf_counter()
         gen = torch.Generator().manual_seed(int(seed))
-        x0 = problem.initial(o.particles, gen) if init is None else problem.full(init)
         movable = torch.as_tensor(problem.movable_mask)
+        if init is not None:
+            x0 = problem.full(init)
+        elif o.candidates > o.particles:
+            x0 = screen(problem.cost, problem.initial(o.candidates, gen), o.particles)
+        else:
+            x0 = problem.initial(o.particles, gen)
         terms = problem.cost.constraint_terms
         qp = LinearisedProjection(problem) if o.projection == "qp" else None
 
@@ -79,6 +96,8 @@ class LangevinSolver(StageSolver):
             noise=o.noise,
             max_delta=o.max_delta,
             final_descent=o.final_descent,
+            resample=o.resample,
+            temperature=o.temperature,
         )
         t1 = time.perf_counter()
         x, e = langevin(problem.cost, project(x0), movable, problem.lo, problem.hi, cfg, gen, project=project)

@@ -1,0 +1,139 @@
+"""Screened starts, population resampling, an energy that sees some objects, feature noise in training."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import scenescore as ss
+from scenescore.costs import CostError, CostFn, LearnedEnergy
+from scenescore.problem import Problem, ProblemError, load_problem
+from scenescore.scene import Scene, SceneObject
+from scenescore.solvers import solve
+from scenescore.solvers.langevin import LangevinConfig, langevin, resample, screen
+
+torch.set_num_threads(1)
+
+
+def _pull(poses: torch.Tensor) -> torch.Tensor:
+    """Two basins for the mug: a shallow one at x = -0.3, a deep one at x = +0.3."""
+    x = poses[:, 1, 0]
+    return torch.minimum((x + 0.3) ** 2 * 50, (x - 0.3) ** 2 * 50 - 1.0) + 5 * poses[:, 1, 1] ** 2
+
+
+def _scene() -> Scene:
+    return Scene(
+        [
+            SceneObject("box", "box", (0.1, 0.1), (0.0, 0.0, 0.0), fixed=True),
+            SceneObject("mug", "mug", (0.08, 0.08), None, shape="disk"),
+        ],
+        bounds=((-0.6, -0.6), (0.6, 0.6)),
+    )
+
+
+def test_screen_keeps_the_lowest():
+    draws = torch.randn(100, 2, 3, generator=torch.Generator().manual_seed(0))
+    e = draws[:, 0, 0] ** 2
+    kept = screen(lambda x: x[:, 0, 0] ** 2, draws, 10, chunk=7)
+    assert kept.shape == (10, 2, 3)
+    assert torch.equal(kept, draws[e.argsort()[:10]])
+
+
+def test_resample_copies_low_cost_particles_within_groups():
+    gen = torch.Generator().manual_seed(0)
+    x = torch.arange(8, dtype=torch.float64)[:, None, None].expand(8, 1, 3).clone()
+    e = torch.tensor([0.0, 50, 50, 50, 50, 50, 0, 50], dtype=torch.float64)  # two groups of four
+    out = resample(x, e, temperature=1.0, groups=2, generator=gen)
+    assert out[:4, 0, 0].tolist() == [0, 0, 0, 0]  # group 1: only particle 0 is any good
+    assert out[4:, 0, 0].tolist() == [6, 6, 6, 6]  # group 2 draws from its own particles only
+    flat = resample(x, torch.zeros(8, dtype=torch.float64), 1.0, 1, gen)
+    assert sorted(flat[:, 0, 0].tolist()) == list(range(8))  # equal weights: systematic resampling keeps all
+
+
+def test_resampled_population_ends_in_the_deep_basin():
+    p = Problem(_scene(), CostFn(_pull, name="pull") + ss.costs.Bounds())
+    base = {"particles": 64, "steps": 40, "step_init": 0.01, "step_final": 1e-3, "noise": 0.5}
+    plain = solve(p, "langevin", seed=0, options={"langevin": base})
+    pop = solve(p, "langevin", seed=0, options={"langevin": {**base, "resample": 3, "temperature": 0.3}})
+    deep = lambda r: float(np.mean(np.abs(r.samples[:, 1, 0] - 0.3) < 0.05))  # noqa: E731
+    assert deep(pop) > 0.9 and deep(pop) > deep(plain) + 0.2, (deep(plain), deep(pop))
+    with pytest.raises(ValueError, match="temperature"):
+        solve(p, "langevin", options={"langevin": {"temperature": 0.0}})
+    with pytest.raises(ValueError, match="age=None"):
+        cfg = LangevinConfig(steps=4, resample=1)
+        x = torch.zeros(2, 1, 3)
+        langevin(lambda x: x.sum((1, 2)), x, torch.ones(1, dtype=torch.bool), -torch.ones(2), torch.ones(2),
+                 cfg, age=torch.zeros(2))  # fmt: skip
+
+
+def test_candidates_screen_the_start_by_cost():
+    p = Problem(_scene(), CostFn(_pull, name="pull") + ss.costs.Bounds())
+    opts = {"particles": 16, "steps": 0, "final_descent": 0}
+    uni = solve(p, "langevin", seed=0, options={"langevin": opts})
+    scr = solve(p, "langevin", seed=0, options={"langevin": {**opts, "candidates": 1024}})
+    assert scr.sample_costs.max() < np.median(uni.sample_costs)
+    again = solve(p, "langevin", seed=0, options={"langevin": {**opts, "candidates": 1024}})
+    assert np.array_equal(scr.samples, again.samples)
+
+
+@pytest.fixture(scope="module")
+def model():
+    torch.manual_seed(0)
+    return ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=16, layers=2)
+
+
+def test_learned_energy_sees_only_the_named_objects(model):
+    scene = ss.scenarios.get("dining").generate(1, 0)[0]
+    seen = scene.names[:3]
+    sub = Scene([scene[n] for n in seen], scene.bounds)
+    x = torch.tensor(scene.poses())[None]
+    p = Problem(scene, LearnedEnergy(model, objects=seen), movable=seen)
+    e_sub = model.energy_fn(sub)(torch.tensor(sub.poses(), dtype=torch.float32)[None])
+    assert float(p.cost(x)) == pytest.approx(float(e_sub.detach()), rel=1e-5)
+    moved = x.clone()
+    moved[0, 5, :2] += 0.2  # an object the energy does not see
+    assert float(p.cost(moved)) == pytest.approx(float(p.cost(x)), rel=1e-6)
+    assert float(Problem(scene, LearnedEnergy(model), movable=seen).cost(moved)) != pytest.approx(
+        float(Problem(scene, LearnedEnergy(model), movable=seen).cost(x)), rel=1e-6
+    )
+    with pytest.raises(CostError, match="no object named 'cup'"):
+        Problem(scene, LearnedEnergy(model, objects=["plate_0", "cup"]))
+    with pytest.raises(CostError, match="non-empty list"):
+        LearnedEnergy(model, objects="plate_0")
+
+
+def test_casadi_uses_the_visible_objects_only(model):
+    """IPOPT's optimum is stationary for the torch cost that sees three objects (not for one that sees all)."""
+    scene = ss.scenarios.get("dining").generate(1, 0)[0]
+    seen = scene.names[:4]
+    cost = LearnedEnergy(model.double(), objects=seen) + ss.costs.PoseTarget(
+        "bowl_0", scene["bowl_0"].pose[:2]
+    )
+    p = Problem(scene.without("bowl_0"), cost)
+    r = solve(p, "casadi", init=scene.poses())
+    assert r.status == "converged", r.summary()
+    x = torch.tensor(r.poses)[None].requires_grad_(True)
+    (g,) = torch.autograd.grad(p.cost(x).sum(), x)
+    assert g[0, 3].abs().max() < 1e-5, g[0, 3]
+    full = Problem(
+        scene.without("bowl_0"),
+        LearnedEnergy(model) + ss.costs.PoseTarget("bowl_0", scene["bowl_0"].pose[:2]),
+    )
+    x = torch.tensor(r.poses)[None].requires_grad_(True)
+    (g_full,) = torch.autograd.grad(full.cost(x).sum(), x)
+    assert g_full[0, 3].abs().max() > 1e-3
+
+
+def test_yaml_energy_objects_key(tmp_path, model):
+    scene = ss.scenarios.get("dining").generate(1, 0)[0]
+    (tmp_path / "scene.json").write_text(scene.without("bowl_0").to_json())
+    model.save(tmp_path / "m.ckpt")
+    text = "scene: scene.json\nmodel: m.ckpt\ncosts:\n  - {{type: energy, objects: [bowl_0, plate_0, {}]}}\n"
+    (tmp_path / "p.yaml").write_text(text.format("fork_0"))
+    loaded = load_problem(tmp_path / "p.yaml")
+    energy = next(c for _, c in loaded.problem.cost.objective_items)
+    assert energy.objects == ["bowl_0", "plate_0", "fork_0"]
+    (tmp_path / "p.yaml").write_text(text.format("cup_0"))
+    with pytest.raises(ProblemError, match=r"costs\[0\]\.objects\[2\].*no object named 'cup_0'"):
+        load_problem(tmp_path / "p.yaml")
