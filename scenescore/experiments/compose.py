@@ -67,10 +67,11 @@ class ComposeResult:
 
 def _correct(scenario: TVScenario, scene, poses: np.ndarray) -> tuple[int, int]:
     """Correct samples among ``poses (S, N, 3)``, and how many of them are distinct at 1 cm."""
-    ok = [p for p in np.asarray(poses) if scenario.correct(scene.with_poses(p))]
-    if not ok:
+    poses = np.asarray(poses)
+    ok = poses[scenario.correct_many(scene, poses)]
+    if not len(ok):
         return 0, 0
-    return len(ok), len(np.unique(np.round(np.asarray(ok)[..., :2], 2).reshape(len(ok), -1), axis=0))
+    return len(ok), len(np.unique(np.round(ok[..., :2], 2).reshape(len(ok), -1), axis=0))
 
 
 def run(

@@ -133,13 +133,18 @@ class TVScenario:
 
     def correct(self, scene: Scene) -> bool:
         """Aligned and symmetric, no collision (exact check), inside the room."""
-        if not self.aligned(scene):
-            return False
+        return bool(self.correct_many(scene, scene.poses()[None])[0])
+
+    def correct_many(self, scene: Scene, poses: np.ndarray) -> np.ndarray:
+        """:meth:`correct` for each pose set of ``poses (S, N, 3)`` in ``scene``: ``(S,)`` bool."""
         from ..costs import Bounds, HingeCollision
         from ..problem import Problem
 
         prob = Problem(scene, HingeCollision(margin=0.0) + Bounds())
-        return bool(prob.check(scene.poses()).feasible)
+        out = np.zeros(len(poses), dtype=bool)
+        for k, p in enumerate(np.asarray(poses, dtype=float)):
+            out[k] = self.aligned(scene.with_poses(p)) and bool(prob.check(p).feasible)
+        return out
 
     def oracle(self, scene: Scene, name: str) -> tuple[float, float, float]:
         """A speaker's pose from the television and the other speaker."""

@@ -42,8 +42,12 @@ class StageSolver:
 
     def solve(self, problem, init=None, seed: int = 0) -> Result:
         """``solve(problem, init=None, seed=0) -> Result``."""
-        with few_threads():
+        with few_threads(self.threads(problem)):
             return self._solve(problem, init, seed)
+
+    def threads(self, problem) -> int:
+        """torch threads for this solve: one (tiny tensors); batched samplers override."""
+        return 1
 
     def _solve(self, problem, init, seed: int) -> Result:
         raise NotImplementedError

@@ -65,6 +65,11 @@ class LangevinSolver(StageSolver):
     name = "langevin"
     options_cls = LangevinOptions
 
+    def threads(self, problem: Problem) -> int:
+        """Every thread torch has for large populations (measured: 1000 particles, 8 objects, 2 threads
+        take 8.1 s against 15.6 s on one), one for small ones."""
+        return torch.get_num_threads() if self.options.particles >= 256 else 1
+
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         o = self.options
         t0 = time.perf_counter()
