@@ -1,5 +1,5 @@
 """Where SceneScore puts a missing piece in Unseen-Class rows (Table 2), and whether composing with
-the hinge collision cost helps: a diagnostic for the open work on ``experiment novel``.
+the hinge collision cost helps: a diagnostic for ``experiment novel``.
 
     python benchmarks/novel_unseen_class.py [--rows 8] [--seed 0]
 
