@@ -9,8 +9,8 @@ thresholds, no collision by the exact check, inside the room).
 - SceneScore: Langevin on energy + 10 * hinge collision + 10 * bounds; every particle is a sample. The
   energy sees the television and speakers only (the clutter is a class it never saw, and enters
   through the collision cost). The particles are a population resampled three times by cost
-  (population annealing): independent chains from uniform starts mostly stall in high-energy basins
-  (about 5% correct), resampled ones mostly end aligned, at the price of fewer distinct samples, so
+  (population annealing): independent chains from uniform starts mostly stall in high-energy basins,
+  resampled ones mostly end aligned, at the price of fewer distinct samples, so
   the table also counts the distinct correct samples (poses rounded to 1 cm). The energy is trained
   with every counter-example chain moving every object, as the sampler does here (with the default
   mix of one-object and subset chains, one seed of three learned a basin lower than the data's and
