@@ -66,8 +66,8 @@ class LangevinSolver(StageSolver):
     options_cls = LangevinOptions
 
     def threads(self, problem: Problem) -> int:
-        """Every thread torch has for large populations (measured: 1000 particles, 8 objects, 2 threads
-        take 8.1 s against 15.6 s on one), one for small ones."""
+        """Every thread torch has for large populations (their tensors are big enough to pay for the
+        pool), one for small ones."""
         return torch.get_num_threads() if self.options.particles >= 256 else 1
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
