@@ -57,7 +57,7 @@ class ComposeResult:
         for m, runs in self.correct.items():
             a = np.asarray(runs, dtype=float)
             fig: dict[str, float] = {}
-            d = np.asarray(self.distinct.get(m, runs), dtype=float)
+            d = np.asarray(self.distinct[m], dtype=float)
             for k, n in enumerate(self.levels):
                 fig[f"correct_at_{n}_objects"] = float(a[:, k].mean())
                 fig[f"correct_at_{n}_objects_std"] = float(a[:, k].std())
@@ -171,9 +171,9 @@ def run(
                     res.seconds[m] += time.perf_counter() - t0
             for m in chosen:
                 # chains: fraction correct among the refined, scaled to the samples
-                v = got[m] * samples / max(1, k_refine * n_scenes) if m in CHAINS else got[m]
-                counts[m].append(v)
-                uniq[m].append(dis[m] * samples / max(1, k_refine * n_scenes) if m in CHAINS else dis[m])
+                scale = samples / max(1, k_refine * n_scenes) if m in CHAINS else 1.0
+                counts[m].append(got[m] * scale)
+                uniq[m].append(dis[m] * scale)
             if progress:
                 log(f"seed {seed} clutter {n}: " + ", ".join(f"{m} {counts[m][-1]:.0f}" for m in chosen))
         for m in chosen:

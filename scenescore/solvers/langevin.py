@@ -68,18 +68,22 @@ def screen(energy_fn: Callable[[Tensor], Tensor], draws: Tensor, keep: int, chun
     return draws[_energies(energy_fn, draws, chunk).argsort()[:keep]]
 
 
+def _finite_or_inf(e: Tensor) -> Tensor:
+    """NaN and -inf energies become +inf, so that no ranking or weighting ever prefers them."""
+    return torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+
+
 def _energies(energy_fn: Callable[[Tensor], Tensor], x: Tensor, chunk: int) -> Tensor:
     with torch.no_grad():
         e = torch.cat([energy_fn(x[i : i + chunk]) for i in range(0, len(x), chunk)])
-    return torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+    return _finite_or_inf(e)
 
 
 def resample(x: Tensor, e: Tensor, temperature: float, groups: int, generator: torch.Generator) -> Tensor:
     """Systematic resampling of particles ``x (G * P, ...)`` within each contiguous group of ``P`` by
     weights ``softmax(-e / temperature)``: particles in low-cost basins are copied, the rest dropped."""
     p = x.shape[0] // groups
-    e = e.reshape(groups, p)
-    e = torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+    e = _finite_or_inf(e.reshape(groups, p))
     w = torch.softmax(-(e - e.min(dim=1, keepdim=True).values) / temperature, dim=1)  # (G, P)
     u = (torch.rand(groups, 1, generator=generator, dtype=w.dtype) + torch.arange(p, dtype=w.dtype)) / p
     idx = torch.searchsorted(torch.cumsum(w, dim=1), u).clamp(max=p - 1)  # (G, P)
@@ -173,7 +177,6 @@ def langevin(
 def best_of(poses: Tensor, energies: Tensor, groups: int) -> tuple[Tensor, Tensor]:
     """Best particle per group: ``poses (G * P, N, 3)`` in contiguous groups -> ``(G, N, 3)``, ``(G,)``."""
     p = poses.shape[0] // groups
-    e = energies.reshape(groups, p)
-    e = torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+    e = _finite_or_inf(energies.reshape(groups, p))
     idx = e.argmin(dim=1)
     return poses.reshape(groups, p, *poses.shape[1:])[torch.arange(groups), idx], e[torch.arange(groups), idx]
