@@ -4,7 +4,7 @@
 #
 # torchvision 0.28.0 is the release built for torch 2.13.0 and pins torch==2.13.0, which the installed
 # 2.13.0+cpu satisfies, so pip keeps the CPU torch. Its wheel is a CUDA build whose compiled ops cannot
-# load with a CPU torch; scenescore.vision.encoders.import_open_clip works around the import error that
+# load with a CPU torch; scenescore.encoders.clip.import_open_clip works around the import error that
 # causes (CLIP uses none of those ops). The last line checks that torch is still the CPU build and that
 # open_clip and torchvision's transforms import and run.
 set -euo pipefail
@@ -13,7 +13,7 @@ PY="${1:-python}"
 "$PY" - <<'PYEOF'
 import torch
 assert torch.__version__.startswith("2.13.0") and torch.version.cuda is None, f"torch changed: {torch.__version__}"
-from scenescore.vision.encoders import import_open_clip
+from scenescore.encoders.clip import import_open_clip
 open_clip = import_open_clip()
 import numpy as np
 from PIL import Image

@@ -14,8 +14,8 @@ import torch
 
 from scenescore.encoders import FootprintEncoder
 from scenescore.models import ScoreModel
+from scenescore.sampling import LangevinConfig, langevin, uniform_init
 from scenescore.scenarios import DiningScenario
-from scenescore.solvers.langevin import LangevinConfig, langevin, uniform_init
 from scenescore.training import TrainConfig, train
 
 

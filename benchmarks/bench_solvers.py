@@ -18,9 +18,9 @@ import numpy as np
 import torch
 
 import scenescore as ss
-from scenescore.solvers.ipopt import CasadiSolver
+from scenescore.solvers.casadi import CasadiSolver
+from scenescore.solvers.langevin import LangevinSolver
 from scenescore.solvers.projection import LinearisedProjection, project_cvxpy
-from scenescore.solvers.sampling import LangevinSolver
 from scenescore.solvers.sqp import OSQPSolver
 
 

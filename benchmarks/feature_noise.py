@@ -16,7 +16,7 @@ import time
 import numpy as np
 import torch
 
-from scenescore.experiments.missing import make_cases
+from scenescore.evaluation import make_cases
 from scenescore.placement import SceneScorePlacer
 from scenescore.scenarios import DiningScenario, OrderingScenario
 from scenescore.training import TrainConfig

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 import scenescore as ss
-from scenescore.experiments.missing import make_cases
+from scenescore.evaluation import make_cases
 from scenescore.placement import SceneScorePlacer
 from scenescore.scenarios import OrderingScenario
 

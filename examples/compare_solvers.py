@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from scenescore.problem import load_problem
+from scenescore.problem_file import load_problem
 from scenescore.scene import atomic_write_text
 from scenescore.solvers.compare import compare
 

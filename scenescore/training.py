@@ -23,8 +23,8 @@ from tqdm.auto import tqdm
 
 from .encoders import Encoder, FootprintEncoder
 from .models import SceneTensors, ScoreModel
+from .sampling import TRAINING, LangevinConfig, langevin, uniform_init
 from .scene import Scene, SceneError
-from .solvers.langevin import LangevinConfig, langevin, uniform_init
 
 __all__ = ["TrainConfig", "train", "infonce_loss", "perturbed_negatives"]
 
@@ -39,9 +39,7 @@ class TrainConfig:
     chain_steps: int = 6  # Langevin steps each persistent chain advances per iteration
     restart: float = 0.1  # fraction of chains restarted from uniform each iteration
     # each chain follows this schedule from its (re)start: coarse moves first, then fine ones
-    chain: LangevinConfig = field(
-        default_factory=lambda: LangevinConfig(steps=60, step_init=0.05, step_final=5e-4, noise=1.0)
-    )
+    chain: LangevinConfig = TRAINING
     perturbed: int = 0  # extra counter-examples: one object's true pose moved by noise of a random scale
     perturb_pos: tuple[float, float] = (0.005, 0.2)  # log-uniform range of the position noise's std (m)
     perturb_angle: tuple[float, float] = (0.03, 1.5)  # log-uniform range of the angle noise's std (rad)

@@ -39,7 +39,7 @@ def test_compose_costs_example(workdir, capsys):
 def test_yaml_example_solves_and_compares(workdir):
     import compare_solvers
 
-    from scenescore.problem import load_problem
+    from scenescore.problem_file import load_problem
     from scenescore.solvers import solve
 
     lp = load_problem(workdir / "place_bowl.yaml")

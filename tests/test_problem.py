@@ -10,7 +10,8 @@ import pytest
 import torch
 
 from scenescore.cli import problems as cli_problems
-from scenescore.problem import ProblemError, load_problem
+from scenescore.problem import ProblemError
+from scenescore.problem_file import load_problem
 
 torch.set_num_threads(1)
 

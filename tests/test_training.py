@@ -1,12 +1,14 @@
 """Training and placement: a tiny run learns a fixed offset; same seed, same numbers."""
 
 import math
+from dataclasses import replace
 
 import torch
 
 from scenescore import Scene, SceneObject
-from scenescore.placement import PlaceConfig, place
-from scenescore.solvers.langevin import LangevinConfig
+from scenescore.placement import PLACE as PLACE_DEFAULT
+from scenescore.placement import place
+from scenescore.sampling import LangevinConfig
 from scenescore.training import TrainConfig, train
 
 
@@ -26,8 +28,10 @@ def _offset_scenes(n, seed):
 
 
 CFG = TrainConfig(iterations=150, batch_scenes=8, negatives=8, model={"hidden": 32, "layers": 2})
-PLACE = PlaceConfig(
-    particles=64, langevin=LangevinConfig(steps=60, step_init=0.05, step_final=5e-4, final_descent=10)
+PLACE = replace(
+    PLACE_DEFAULT,
+    particles=64,
+    chain=LangevinConfig(steps=60, step_init=0.05, step_final=5e-4, final_descent=10),
 )
 
 
@@ -52,7 +56,7 @@ def test_same_seed_same_numbers():
     for (k, a), b in zip(m1.net.state_dict().items(), m2.net.state_dict().values()):
         assert torch.equal(a, b), k
     q = scenes[0].without("b")
-    small = PlaceConfig(particles=8, langevin=LangevinConfig(steps=5))
+    small = replace(PLACE_DEFAULT, particles=8, chain=LangevinConfig(steps=5))
     assert place(m1, q, small, seed=3)["b"].pose == place(m2, q, small, seed=3)["b"].pose
     m3 = train(scenes, cfg, seed=6, progress=False)
     assert not torch.equal(next(m1.net.parameters()), next(m3.net.parameters()))
@@ -65,7 +69,9 @@ def test_fixed_objects_never_move():
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     s = _offset_scenes(1, 3)[0]
-    out = place(model, s.without("b"), PlaceConfig(particles=4, langevin=LangevinConfig(steps=5)), seed=0)
+    out = place(
+        model, s.without("b"), replace(PLACE_DEFAULT, particles=4, chain=LangevinConfig(steps=5)), seed=0
+    )
     assert out["a"].pose == s["a"].pose
     (x0, y0), (x1, y1) = s.bounds
     x, y, _ = out["b"].pose

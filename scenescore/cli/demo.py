@@ -30,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..experiments.missing import OraclePlacer, make_cases, score_cases
-    from ..placement import PlaceConfig, SceneScorePlacer
+    from ..evaluation import OraclePlacer, make_cases, score_cases
+    from ..placement import SceneScorePlacer
     from ..plot import demo_figure
     from ..scenarios import DiningScenario
     from ..scene import write_jsonl
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = TrainConfig()
     if args.iterations is not None:
         cfg.iterations = args.iterations
-    placer = SceneScorePlacer(train_config=cfg, place_config=PlaceConfig(), progress=not args.quiet)
+    placer = SceneScorePlacer(train_config=cfg, progress=not args.quiet)
     placer.fit(train, seed=args.seed)
     placer.model.save(out / "model.ckpt")
     info = placer.model.info

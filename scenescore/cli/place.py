@@ -27,8 +27,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from ..models import load
-    from ..placement import PlaceConfig, place
+    from ..placement import PLACE, place
     from ..plot import plot_scene
     from ..scene import Scene
     from . import UserError
@@ -38,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     names = scene.unknown
     if not names:
         raise UserError(f"{args.scene}: no object has `pose: null`; nothing to place")
-    cfg = PlaceConfig() if args.particles is None else PlaceConfig(particles=args.particles)
+    cfg = PLACE if args.particles is None else replace(PLACE, particles=args.particles)
     filled = place(model, scene, cfg, seed=args.seed)
     for n in names:
         x, y, t = filled[n].pose

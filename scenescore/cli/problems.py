@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load(path: str):
-    from ..problem import load_problem
+    from ..problem_file import load_problem
 
     return load_problem(path)
 
@@ -71,7 +71,7 @@ def _plot(result, path: str) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon
 
-    from ..costs.geometry import footprint_core
+    from ..geometry import footprint_core
     from ..scene import atomic_write_bytes
 
     scene = result.scene

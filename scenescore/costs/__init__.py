@@ -2,11 +2,35 @@
 
 ``ss.costs.LearnedEnergy(model) + 10.0 * ss.costs.HingeCollision(margin=0.01)`` is a flat weighted
 :class:`Sum`; ``sum.terms(poses)`` gives every term's value, weight, weighted value and violation.
+One module per cost holds its torch form, constraint rows, exact check, CasADi form and YAML spec.
 """
 
-from .base import Binding, ConstraintCost, Cost, CostError, Sum, TermValue, as_sum
-from .geometry import Footprints, footprint_core, signed_distance
-from .terms import Bounds, CostFn, HingeCollision, LearnedEnergy, PoseTarget, ReachLimit
+from .base import (
+    Binding,
+    ConstraintCost,
+    Cost,
+    CostError,
+    CostSpec,
+    SpecContext,
+    Sum,
+    TermValue,
+    Violation,
+    as_sum,
+    cost_types,
+    register_cost_type,
+)
+from .symbolic import SymbolicProblem, register_casadi_form
+
+# Each module registers its YAML type on import; errors list the types in this order.
+# isort: off
+from .energy import LearnedEnergy
+from .collision import HingeCollision
+from .bounds import Bounds
+from .reach import ReachLimit
+from .target import PoseTarget
+from .function import CostFn
+
+# isort: on
 
 __all__ = [
     "Binding",
@@ -15,14 +39,18 @@ __all__ = [
     "Cost",
     "CostError",
     "CostFn",
-    "Footprints",
+    "CostSpec",
     "HingeCollision",
     "LearnedEnergy",
     "PoseTarget",
     "ReachLimit",
+    "SpecContext",
     "Sum",
+    "SymbolicProblem",
     "TermValue",
+    "Violation",
     "as_sum",
-    "footprint_core",
-    "signed_distance",
+    "cost_types",
+    "register_casadi_form",
+    "register_cost_type",
 ]

@@ -7,23 +7,44 @@ bound copy; :class:`~scenescore.problem.Problem` does this for you.
 
 Constraint-like costs (collision, bounds, reach) also expose their constraints as ``g(poses) >= 0``
 rows in metres; their penalty is ``sum(relu(-g) ** power)`` and their violation is ``max(relu(-g))``.
+
+A cost is one class: its torch evaluation (``evaluate``), its constraint rows (``constraints``), its
+exact feasibility check (``check``: :class:`~scenescore.problem.Problem` asks every term), and, in the
+cost's own module, its CasADi form (:func:`scenescore.costs.symbolic.register_casadi_form`) and its YAML
+spec (:func:`register_cost_type`). See ``docs/extending.md``.
 """
 
 from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 import torch
+from pydantic import BaseModel, ConfigDict, Field
 from torch import Tensor
 
+from ..geometry import Footprints
 from ..scene import Scene, SceneError
-from .geometry import Footprints
 
-__all__ = ["CostError", "Binding", "Cost", "ConstraintCost", "Sum", "TermValue", "as_sum"]
+__all__ = [
+    "CostError",
+    "Binding",
+    "Cost",
+    "ConstraintCost",
+    "Sum",
+    "TermValue",
+    "Violation",
+    "as_sum",
+    "check_scene_names",
+    "CostSpec",
+    "SpecContext",
+    "register_cost_type",
+    "cost_types",
+]
 
 
 class CostError(ValueError):
@@ -64,6 +85,19 @@ class TermValue:
     violation: Tensor | None  # (B,), metres (or radians); None for terms that are not constraints
 
 
+@dataclass
+class Violation:
+    """One violated constraint found by an exact check: the term, the row's label, by how much (metres)."""
+
+    term: str
+    label: str
+    amount: float
+    text: str = ""  # a sentence for people; default "<label> violated by <amount> mm"
+
+    def describe(self) -> str:
+        return self.text or f"{self.term}: {self.label} violated by {self.amount * 1000:.2f} mm"
+
+
 class Cost:
     """Base of all costs: ``name``, ``evaluate(poses (B, N, 3)) -> (B,)``, algebra, binding."""
 
@@ -85,6 +119,10 @@ class Cost:
 
     def _on_bind(self) -> None:
         """Precompute whatever depends on the scene (subclasses)."""
+
+    def check(self, poses: np.ndarray, tol: float) -> list[Violation]:
+        """The exact check of one pose set ``(N, 3)``: what this term violates by more than ``tol``."""
+        return []
 
     # -- binding ------------------------------------------------------------------------------------
     def bind(self, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Cost:
@@ -195,6 +233,14 @@ class ConstraintCost(Cost):
         if g.shape[-1] == 0:
             return poses.new_zeros(poses.shape[0])
         return torch.relu(-g).max(-1).values
+
+    def check(self, poses: np.ndarray, tol: float) -> list[Violation]:
+        """Default exact check: every row below ``-tol`` at ``poses (N, 3)``, evaluated in float64."""
+        x = torch.as_tensor(np.asarray(poses, dtype=np.float64)).reshape(1, -1, 3)
+        with torch.no_grad():
+            g = self.constraints(self._check(x))[0]
+        labels = self.labels()
+        return [Violation(self.name, labels[k], float(-g[k])) for k in range(len(g)) if float(g[k]) < -tol]
 
     def worst(self, poses: Tensor) -> tuple[str, float] | None:
         """The most violated row at one pose set ``(N, 3)`` or ``(1, N, 3)``: ``(label, violation)``."""
@@ -336,7 +382,7 @@ def as_sum(cost: Cost) -> Sum:
     return Sum([(1.0, cost)])
 
 
-def check_scene_names(scene: Scene, names: list[str], what: str) -> list[int]:
+def check_scene_names(scene: Scene, names: Sequence[str], what: str) -> list[int]:
     """Indices of ``names``; the error names the cost option and the objects there are."""
     out = []
     for n in names:
@@ -345,3 +391,58 @@ def check_scene_names(scene: Scene, names: list[str], what: str) -> list[int]:
         except SceneError:
             raise CostError(f"{what}: no object named {n!r}; objects are {scene.names}") from None
     return out
+
+
+# -- YAML specs ------------------------------------------------------------------------------------------
+
+
+class SpecContext(Protocol):
+    """What a cost's YAML spec may ask of the file it is read from (errors name the file, line and key)."""
+
+    def object(self, name: str, at: tuple[str | int, ...]) -> str:
+        """``name`` if the scene has such an object, else a :class:`ProblemError` naming ``at``."""
+        ...
+
+    def objects(self, names: list[str] | None, at: tuple[str | int, ...]) -> list[str] | None:
+        """Each of ``names`` checked as by :meth:`object` (``None`` stays ``None``)."""
+        ...
+
+    def model(self, at: tuple[str | int, ...]) -> Any:
+        """The problem file's trained model (its top-level ``model`` key), loaded once."""
+        ...
+
+
+class CostSpec(BaseModel):
+    """Base of a cost's YAML spec: ``type``, ``weight``, ``name`` and the cost's own keys (no others).
+
+    A subclass declares ``type: Literal["mytype"]`` and the cost's keys, and builds the cost in
+    :meth:`build`; :func:`register_cost_type` makes ``type: mytype`` valid in problem files.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    type: str
+    weight: float = Field(1.0, ge=0, allow_inf_nan=False)
+    name: str | None = None
+
+    def build(self, ctx: SpecContext) -> Cost:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def named(self) -> dict[str, Any]:
+        """``{"name": ...}`` when the spec names the term, else ``{}`` (the cost's default name)."""
+        return {"name": self.name} if self.name else {}
+
+
+_COST_TYPES: dict[str, type[CostSpec]] = {}
+
+
+def register_cost_type(type_name: str, spec: type[CostSpec]) -> type[CostSpec]:
+    """Make ``type: <type_name>`` valid in YAML problem files, read with ``spec``."""
+    if not (isinstance(spec, type) and issubclass(spec, CostSpec)):
+        raise CostError(f"register_cost_type({type_name!r}): expected a CostSpec subclass, got {spec!r}")
+    _COST_TYPES[type_name] = spec
+    return spec
+
+
+def cost_types() -> dict[str, type[CostSpec]]:
+    """The registered YAML cost types: name -> spec class."""
+    return dict(_COST_TYPES)

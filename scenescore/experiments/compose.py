@@ -91,10 +91,10 @@ def run(
     """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level."""
     import torch
 
-    from .. import costs, solve
+    from .. import costs
     from ..baselines import NeatNet, NeatNetConfig
     from ..problem import Problem
-    from ..solvers import get
+    from ..solvers import get, solve
     from ..training import train
 
     chosen = methods or METHODS

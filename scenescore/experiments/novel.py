@@ -14,12 +14,13 @@ from typing import Any
 
 import numpy as np
 
+from ..evaluation import OraclePlacer, make_cases
 from ..placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
-from .missing import OraclePlacer, fit_predict, make_cases
+from .missing import fit_predict
 from .report import SeedResults, format_table
 
 __all__ = ["PAPER", "METHODS", "run", "NovelResult", "format_novel", "table_columns"]

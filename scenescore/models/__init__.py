@@ -1,7 +1,9 @@
-"""Energy models: the SceneScore network, trained models and their checkpoints."""
+"""Energy models: the SceneScore network, batching, trained models, checkpoints and the CasADi export."""
 
-from .energy import EnergyConfig, EnergyNet, edge_features
-from .score import FORMAT_VERSION, CheckpointError, SceneTensors, ScoreModel, batch_scenes, load
+from .batching import SceneTensors, batch_scenes
+from .checkpoint import FORMAT_VERSION, CheckpointError
+from .model import ScoreModel, load
+from .network import EnergyConfig, EnergyNet, edge_features
 
 __all__ = [
     "EnergyConfig",

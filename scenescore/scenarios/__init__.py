@@ -10,6 +10,18 @@ from .desk import DeskScenario
 from .dining import DiningScenario
 from .ordering import OrderingScenario
 from .tv import TVScenario
+from .zoo import (
+    ZOO,
+    BanquetScenario,
+    BedroomScenario,
+    BookshelfScenario,
+    CascadeScenario,
+    GardenScenario,
+    JarGridScenario,
+    LoungeScenario,
+    PcbScenario,
+    WorkstationScenario,
+)
 
 __all__ = [
     "Scenario",
@@ -20,6 +32,16 @@ __all__ = [
     "OrderingScenario",
     "TVScenario",
     "DeskScenario",
+    "ZOO",
+    "PcbScenario",
+    "JarGridScenario",
+    "BedroomScenario",
+    "BanquetScenario",
+    "WorkstationScenario",
+    "GardenScenario",
+    "CascadeScenario",
+    "BookshelfScenario",
+    "LoungeScenario",
 ]
 
 
@@ -40,6 +62,15 @@ _REGISTRY: dict[str, Callable[..., Any]] = {
     "ordering": OrderingScenario,
     "tv": TVScenario,
     "desk": DeskScenario,
+    "zoo-pcb": PcbScenario,
+    "zoo-jars": JarGridScenario,
+    "zoo-bedroom": BedroomScenario,
+    "zoo-banquet": BanquetScenario,
+    "zoo-workstation": WorkstationScenario,
+    "zoo-garden": GardenScenario,
+    "zoo-cascade": CascadeScenario,
+    "zoo-books": BookshelfScenario,
+    "zoo-lounge": LoungeScenario,
 }
 
 

@@ -12,8 +12,8 @@ import numpy as np
 import torch
 
 from ..problem import Problem
-from . import get
-from .result import Result, few_threads
+from .registry import get
+from .result import Result
 
 __all__ = ["Comparison", "compare"]
 
@@ -83,7 +83,9 @@ def compare(
     built = {}
     for s in solvers:
         try:
-            built[s] = get(s, **options) if ">" in s else get(s, **options.get(s, {}))
+            stages = [t.strip() for t in s.split(">")]
+            mine = {t: options[t] for t in stages if t in options}  # each row takes its own stages' options
+            built[s] = get(s, **mine) if len(stages) > 1 else get(s, **mine.get(s, {}))
         except Exception as e:  # an unknown solver or bad option is a row too
             built[s] = f"{type(e).__name__}: {e}"
     bar = None
@@ -92,8 +94,7 @@ def compare(
 
         bar = tqdm(total=len(seed_list) * len(solvers), desc="compare", unit="solve")
     for seed in seed_list:
-        with few_threads():
-            init = problem.initial(n_part, torch.Generator().manual_seed(seed))  # shared by every solver
+        init = problem.initial(n_part, torch.Generator().manual_seed(seed))  # shared by every solver
         for s in solvers:
             solver = built[s]
             if isinstance(solver, str):

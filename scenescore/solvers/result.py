@@ -4,57 +4,22 @@ from __future__ import annotations
 
 import json
 import math
-from contextlib import contextmanager
+import os
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
 import torch
 
 from ..problem import FEASIBILITY_TOL, Problem
-from ..scene import Scene
+from ..scene import Scene, atomic_write_text
 
-__all__ = ["Result", "StageSolver", "Status", "make_result", "few_threads"]
-
-
-@contextmanager
-def few_threads(n: int = 1):
-    """Run torch on ``n`` intra-op threads: these solvers work on tiny tensors, where torch's thread pool
-    costs far more than it saves (measured: a 32-element ``min`` takes 11 ms with 2 threads on a busy
-    2-core machine, 3 us with 1)."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
+__all__ = ["Result", "Status", "make_result"]
 
 
-class StageSolver:
-    """Base of the solvers: options from keyword arguments (``options_cls``), and ``solve`` run on one
-    torch thread around the subclass's ``_solve``."""
-
-    name = "stage"
-    options_cls: type
-
-    def __init__(self, **options):
-        self.options = self.options_cls(**options)
-
-    def solve(self, problem, init=None, seed: int = 0) -> Result:
-        """``solve(problem, init=None, seed=0) -> Result``."""
-        with few_threads(self.threads(problem)):
-            return self._solve(problem, init, seed)
-
-    def threads(self, problem) -> int:
-        """torch threads for this solve: one (tiny tensors); batched samplers override."""
-        return 1
-
-    def _solve(self, problem, init, seed: int) -> Result:
-        raise NotImplementedError
-
-
-class Status:
-    """Solver statuses."""
+class Status(StrEnum):
+    """What a solve ended with; serialises to its (lower-case) name."""
 
     CONVERGED = "converged"  # a refinement met its optimality and feasibility tolerances
     SAMPLED = "sampled"  # a sampler ran its schedule (no optimality claim)
@@ -63,7 +28,10 @@ class Status:
     FAILED = "failed"  # the solver gave up (numerical trouble, a QP failure)
     ERROR = "error"  # an exception; the message says which
 
-    OK = (CONVERGED, SAMPLED)
+    @property
+    def ok(self) -> bool:
+        """A status that can count as success (when the constraints hold too)."""
+        return self in (Status.CONVERGED, Status.SAMPLED)
 
 
 @dataclass
@@ -72,7 +40,7 @@ class Result:
 
     solver: str
     poses: np.ndarray
-    status: str
+    status: Status
     success: bool
     feasible: bool
     objective: float
@@ -87,6 +55,9 @@ class Result:
     sample_costs: np.ndarray | None = None  # (B,)
     stages: list[Result] = field(default_factory=list)
     problem: Problem | None = field(default=None, repr=False)
+    threads: int = 1  # torch threads the solve ran on
+    qp_time_mean: float | None = None  # seconds per QP, for solvers that solve QPs
+    wall_time: float | None = None  # seconds from ss.solve's call to its return (set by ss.solve)
 
     @property
     def time_total(self) -> float:
@@ -131,7 +102,7 @@ class Result:
         )
         return {
             "solver": self.solver,
-            "status": self.status,
+            "status": self.status.value,
             "success": self.success,
             "feasible": self.feasible,
             "objective": _num(self.objective),
@@ -146,16 +117,15 @@ class Result:
             "stages": [s.to_dict() for s in self.stages],
         }
 
-    def to_json(self, path=None) -> str:
-        from ..scene import atomic_write_text
-
+    def to_json(self, path: str | os.PathLike | None = None) -> str:
+        """The result as JSON; written atomically to ``path`` when given."""
         text = json.dumps(self.to_dict(), indent=1)
         if path is not None:
             atomic_write_text(path, text + "\n")
         return text
 
 
-def _num(v):
+def _num(v: float | None) -> float | None:
     if v is None:
         return None
     v = float(v)
@@ -165,15 +135,16 @@ def _num(v):
 def make_result(
     problem: Problem,
     solver: str,
-    poses,
-    status: str,
+    poses: np.ndarray | torch.Tensor,
+    status: Status,
     iterations: int,
     time_setup: float,
     time_solve: float,
     message: str = "",
-    samples=None,
-    sample_costs=None,
+    samples: np.ndarray | torch.Tensor | None = None,
+    sample_costs: np.ndarray | torch.Tensor | None = None,
     tol: float = FEASIBILITY_TOL,
+    threads: int = 1,
 ) -> Result:
     """Evaluate ``poses (N, 3)`` on the problem: terms, violations, the exact feasibility check."""
     x = problem.full(poses)[:1]
@@ -195,7 +166,7 @@ def make_result(
         if w is not None and w[1] > max_v:
             max_v, violated = w[1], f"{c.name}: {w[0]}"
     feas = problem.check(x[0], tol)
-    success = status in Status.OK and max_v <= tol and math.isfinite(objective)
+    success = status.ok and max_v <= tol and math.isfinite(objective)
     if max_v > tol:
         message = (
             message + "; " if message else ""
@@ -219,4 +190,5 @@ def make_result(
         samples=None if samples is None else np.asarray(samples, dtype=float),
         sample_costs=None if sample_costs is None else np.asarray(sample_costs, dtype=float),
         problem=problem,
+        threads=threads,
     )

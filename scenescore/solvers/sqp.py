@@ -22,8 +22,9 @@ import torch
 from torch import Tensor
 
 from ..problem import FEASIBILITY_TOL, Problem
+from .base import StageSolver, start_poses
 from .projection import ANGLE_WEIGHT
-from .result import Result, StageSolver, Status, make_result
+from .result import Result, Status, make_result
 
 __all__ = ["SQPOptions", "OSQPSolver"]
 
@@ -41,6 +42,7 @@ class SQPOptions:
     elastic: float = 1e4  # price of an elastic slack in the QP
     tol_step: float = 1e-7  # converged when the step is this small (metres) ...
     tol_kkt: float = 1e-5  # ... or the Lagrangian's gradient this small, with violations within slack
+    threads: int | None = None  # torch threads; None: one (tiny tensors)
 
 
 class _Model:
@@ -101,7 +103,7 @@ class OSQPSolver(StageSolver):
         t0 = time.perf_counter()
         mdl = _Model(problem)
         n, m = mdl.n, mdl.m
-        x0 = _start(problem, init, seed)
+        x0 = start_poses(problem, init, seed)
         base = x0[0].clone()
         z = x0[0, mdl.var_obj].reshape(-1).numpy().copy()
         scale = np.tile(
@@ -221,17 +223,5 @@ class OSQPSolver(StageSolver):
         r = make_result(problem, self.name, x, status, it, t1 - t0, t2 - t1, message=msg)
         if r.status == Status.CONVERGED and not r.success:
             r.status = Status.INFEASIBLE
-        r.qp_time_mean = float(np.mean(qp_times)) if qp_times else 0.0  # type: ignore[attr-defined]
+        r.qp_time_mean = float(np.mean(qp_times)) if qp_times else 0.0
         return r
-
-
-def _start(problem: Problem, init: Tensor | None, seed: int) -> Tensor:
-    """The start ``(1, N, 3)``: ``init`` (the lowest-cost row of a batch) or the scene's poses, unknown ones drawn."""
-    if init is None:
-        gen = torch.Generator().manual_seed(int(seed))
-        return problem.initial(1, gen, keep_known=True)
-    x = problem.full(init)
-    if x.shape[0] > 1:
-        with torch.no_grad():
-            x = x[int(torch.argmin(problem.evaluate(x)))][None]
-    return x.clone()

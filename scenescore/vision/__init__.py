@@ -7,9 +7,10 @@ See ``docs/vision.md``.
 
 from __future__ import annotations
 
+import importlib
+from typing import Any
+
 from .crop import Crop, object_crop, rectify_crop, scale_descriptor
-from .encoders import ClipEncoder, ImageEncoder
-from .graph import graphs_from_renders, match_objects, scene_from_image, scenes_from_image_folder
 from .pose import MomentPose, angle_error, pose_from_mask
 from .render import (
     DEFAULT_PPM,
@@ -44,10 +45,25 @@ __all__ = [
     "rectify_crop",
     "scale_descriptor",
     "object_crop",
-    "ImageEncoder",
-    "ClipEncoder",
     "scene_from_image",
     "graphs_from_renders",
     "scenes_from_image_folder",
     "match_objects",
 ]
+
+# Scene graphs from images need the encoders, which sit above these imaging primitives (the image
+# encoders crop with them): the graph functions are imported on first use, so importing a primitive
+# never pulls in the encoders.
+_LAZY = {
+    "scene_from_image": "graph",
+    "graphs_from_renders": "graph",
+    "scenes_from_image_folder": "graph",
+    "match_objects": "graph",
+}
+__all__ += list(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -88,7 +88,7 @@ def scene_and_poses_from_image(
             f"(that would be {image_shape(bounds, ppm)[::-1]})"
         )
     if encoder is None:
-        from .encoders import ImageEncoder
+        from ..encoders.image import ImageEncoder
 
         encoder = ImageEncoder(ppm=ppm)
     detector = detector or ClassicalDetector()
@@ -178,7 +178,7 @@ def graphs_from_renders(
     ``meta["symmetric"]`` lists the objects whose angle is canonical (round).
     """
     if encoder is None:
-        from .encoders import ImageEncoder
+        from ..encoders.image import ImageEncoder
 
         encoder = ImageEncoder(ppm=ppm)
     it: Any = scenes

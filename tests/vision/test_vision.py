@@ -10,6 +10,7 @@ import pytest
 
 import scenescore as ss
 from scenescore.encoders import make_encoder
+from scenescore.encoders.image import ImageEncoder
 from scenescore.scene import Scene, SceneError, SceneObject
 from scenescore.vision import (
     DEFAULT_LOOKS,
@@ -17,7 +18,6 @@ from scenescore.vision import (
     ClassicalDetector,
     Detection,
     GroundTruthDetector,
-    ImageEncoder,
     angle_error,
     graphs_from_renders,
     pose_from_mask,

@@ -7,7 +7,7 @@ import pytest
 
 from scenescore.baselines import NeatNetR
 from scenescore.baselines.word_embed import available, minilm
-from scenescore.experiments.missing import make_cases
+from scenescore.evaluation import make_cases
 from scenescore.experiments.novel import position_error_cm
 from scenescore.scenarios import OrderingScenario
 

@@ -14,8 +14,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from ..scene import SceneObject
 from .geometry import footprint_core
+from .scene import SceneObject
 
 __all__ = [
     "shapely_core",

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..scene import Scene, SceneObject
+from .scene import Scene, SceneObject
 
 __all__ = ["Footprints", "footprint_core", "signed_distance", "signed_distance_placed", "support_extent"]
 

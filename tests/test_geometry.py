@@ -9,9 +9,8 @@ import pytest
 import torch
 from shapely.geometry import MultiPoint, Point
 
-from scenescore.costs import Footprints, signed_distance
-from scenescore.costs.exact import collides, fcl_signed_distance, shapely_core
-from scenescore.costs.geometry import footprint_core
+from scenescore.exact import collides, fcl_signed_distance, shapely_core
+from scenescore.geometry import Footprints, footprint_core, signed_distance
 from scenescore.scene import Scene, SceneObject
 
 

@@ -8,10 +8,11 @@ import torch
 
 import scenescore as ss
 from scenescore.costs import CostError, CostFn, LearnedEnergy
-from scenescore.problem import Problem, ProblemError, load_problem
+from scenescore.problem import Problem, ProblemError
+from scenescore.problem_file import load_problem
+from scenescore.sampling import LangevinConfig, langevin, resample, screen
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import solve
-from scenescore.solvers.langevin import LangevinConfig, langevin, resample, screen
 
 torch.set_num_threads(1)
 

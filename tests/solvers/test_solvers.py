@@ -93,7 +93,7 @@ def test_casadi_callback_path_for_user_functions():
 def test_casadi_mx_rebuild_matches_torch_energy():
     import casadi as ca
 
-    from scenescore.solvers.ipopt import energy_mx
+    from scenescore.models.casadi import energy_mx
 
     torch.manual_seed(0)
     for act in ("silu", "softplus", "leaky_relu"):

@@ -28,7 +28,7 @@ TINY = {
 
 @pytest.fixture(scope="module")
 def tiny_clip(tmp_path_factory):
-    from scenescore.vision.encoders import import_open_clip
+    from scenescore.encoders.clip import import_open_clip
 
     open_clip = import_open_clip()
     import torch

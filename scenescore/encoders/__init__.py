@@ -8,14 +8,14 @@ rebuild the one it was trained with (:func:`make_encoder`).
 
 from __future__ import annotations
 
-import colorsys
-import math
+import importlib
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from .scene import Scene, SceneError, SceneObject
+from ..scene import Scene, SceneError, SceneObject
+from .footprint import FootprintEncoder
 
 __all__ = [
     "Encoder",
@@ -39,50 +39,8 @@ class Encoder(Protocol):
     def config(self) -> dict[str, Any]: ...
 
 
-class FootprintEncoder:
-    """What a top-down image shows of an object, read from its footprint: shape, size and colour.
-
-    Works for any category, seen or not: two objects that look alike get nearby vectors.
-    Layout: shape one-hot (box, disk, polygon) | log length, log width, aspect, area |
-    colour RGB | hue (cos, sin) weighted by saturation.
-    """
-
-    name = "footprint"
-    dim = 12
-
-    def encode(self, obj: SceneObject) -> np.ndarray:
-        length, width = obj.size
-        kind = obj.shape_kind
-        onehot = [kind == "box", kind == "disk", kind == "polygon"]
-        if kind == "polygon":
-            pts = obj.polygon()
-            x, y = pts[:, 0], pts[:, 1]
-            area = 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
-        elif kind == "disk":
-            area = math.pi * length * width / 4
-        else:
-            area = length * width
-        r, g, b = (c / 255.0 for c in obj.color)
-        h, s, v = colorsys.rgb_to_hsv(r, g, b)
-        vec = [
-            *map(float, onehot),
-            math.log(length / 0.1),
-            math.log(width / 0.1),
-            min(length, width) / max(length, width),
-            area / 0.01,
-            r,
-            g,
-            b,
-            s * math.cos(2 * math.pi * h),
-            s * math.sin(2 * math.pi * h),
-        ]
-        return np.asarray(vec, dtype=np.float32)
-
-    def config(self) -> dict[str, Any]:
-        return {}
-
-
 _REGISTRY: dict[str, Callable[..., Encoder]] = {"footprint": FootprintEncoder}
+_BUILTIN = {"image": ".image", "clip": ".clip"}  # name -> module, imported on first use
 
 
 def register_encoder(name: str, factory: Callable[..., Encoder]) -> None:
@@ -91,25 +49,25 @@ def register_encoder(name: str, factory: Callable[..., Encoder]) -> None:
 
 
 def available_encoders() -> list[str]:
-    _load_optional()
-    return sorted(_REGISTRY)
+    """Every encoder name: the built-in ones and those registered."""
+    return sorted({*_REGISTRY, *_BUILTIN})
 
 
-def _load_optional() -> None:
-    """Import modules that register further encoders (the vision pipeline), if present."""
-    try:
-        import scenescore.vision.encoders  # noqa: F401
-    except ImportError:
-        pass
+def _factory(name: str) -> Callable[..., Encoder] | None:
+    """The factory registered under ``name``; built-in encoders are imported on first use."""
+    if name not in _REGISTRY and name in _BUILTIN:
+        mod = importlib.import_module(_BUILTIN[name], __name__)
+        cls = {"image": "ImageEncoder", "clip": "ClipEncoder"}[name]
+        _REGISTRY[name] = getattr(mod, cls)
+    return _REGISTRY.get(name)
 
 
 def make_encoder(name: str, config: dict[str, Any] | None = None) -> Encoder:
     """Build a registered encoder; an unknown name lists the valid ones."""
-    if name not in _REGISTRY:
-        _load_optional()
-    if name not in _REGISTRY:
-        raise SceneError(f"unknown encoder {name!r}; available: {sorted(_REGISTRY)}")
-    return _REGISTRY[name](**(config or {}))
+    factory = _factory(name)
+    if factory is None:
+        raise SceneError(f"unknown encoder {name!r}; available: {available_encoders()}")
+    return factory(**(config or {}))
 
 
 def encode_scene(scene: Scene, encoder: Encoder, names: Sequence[str] | None = None) -> np.ndarray:

@@ -1,0 +1,92 @@
+"""The learned energy as a cost: ``E(poses | scene)`` of a trained model."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Literal
+
+import casadi as ca
+import torch
+from torch import Tensor
+
+from ..models import ScoreModel
+from ..models.casadi import energy_mx
+from ..scene import Scene
+from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
+
+__all__ = ["LearnedEnergy", "EnergySpec"]
+
+
+class LearnedEnergy(Cost):
+    """The trained energy ``E(poses | scene)``, conditioned on the bound scene's objects.
+
+    ``objects``: the names the energy sees (default: all). Objects left out, such as clutter of a
+    class the model never saw, are invisible to it and only enter through the other costs.
+    """
+
+    needs_scene = True
+
+    def __init__(self, model: ScoreModel, name: str = "energy", objects: Sequence[str] | None = None):
+        if not hasattr(model, "energy_fn"):
+            raise CostError(
+                f"LearnedEnergy: expected a ScoreModel (scenescore.models.load), got {type(model).__name__}"
+            )
+        if objects is not None and (isinstance(objects, str) or len(objects) == 0):
+            raise CostError(
+                f"LearnedEnergy: objects: expected a non-empty list of object names, got {objects!r}"
+            )
+        self.model = model
+        self.name = name
+        self.objects = None if objects is None else list(objects)
+        self._fn: Callable[[Tensor], Tensor] | None = None
+        self._idx: Tensor | None = None
+        self.visible_scene: Scene | None = None
+
+    @property
+    def visible(self) -> list[int]:
+        """Indices of the bound scene's objects that the energy sees."""
+        n = len(self.binding.scene)
+        return list(range(n)) if self._idx is None else [int(i) for i in self._idx]
+
+    def _on_bind(self) -> None:
+        scene = self.binding.scene
+        self._idx = None
+        if self.objects is not None:
+            idx = check_scene_names(scene, self.objects, f"LearnedEnergy {self.name!r}: objects")
+            scene = type(scene)([scene.objects[i] for i in idx], scene.bounds, meta=scene.meta)
+            self._idx = torch.tensor(idx, dtype=torch.long)
+        self.visible_scene = scene  # the scene the energy is conditioned on
+        with torch.no_grad():
+            self._fn = self.model.energy_fn(scene)
+
+    def evaluate(self, poses: Tensor) -> Tensor:
+        dtype = self.model.dtype
+        if self._fn is None:
+            self.binding  # noqa: B018 - raises
+        if self._idx is not None:
+            poses = poses[:, self._idx]
+        return self._fn(poses.to(dtype)).to(poses.dtype)  # type: ignore[misc]
+
+
+def _energy_casadi(term: LearnedEnergy, weight: float, nlp: SymbolicProblem) -> None:
+    """The network rebuilt symbolically (``energy: mx``, exact Hessians) or through torch (``callback``)."""
+    if nlp.options.get("energy", "mx") != "mx":
+        objective_by_torch(term, weight, nlp)
+        return
+    seen = ca.vertcat(*[nlp.poses[i, :] for i in term.visible])
+    nlp.add_objective(weight * energy_mx(term.model, term.visible_scene, seen))
+
+
+class EnergySpec(CostSpec):
+    """``{type: energy, weight, objects: [names the energy sees], name}``; the file's ``model`` key."""
+
+    type: Literal["energy"]
+    objects: list[str] | None = None
+
+    def build(self, ctx: SpecContext) -> Cost:
+        return LearnedEnergy(ctx.model(()), objects=ctx.objects(self.objects, ("objects",)), **self.named())
+
+
+register_casadi_form(LearnedEnergy, _energy_casadi)
+register_cost_type("energy", EnergySpec)

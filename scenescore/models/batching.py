@@ -1,0 +1,72 @@
+"""Scenes as padded tensors: the batches the energy network, training and the samplers work on."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+from ..encoders import Encoder, encode_scene
+from ..scene import Scene, SceneError
+
+__all__ = ["SceneTensors", "batch_scenes"]
+
+
+@dataclass
+class SceneTensors:
+    """Scenes as padded tensors; ``mask`` marks real objects, ``known`` known poses, ``fixed`` fixed ones."""
+
+    poses: Tensor  # (B, N, 3), unknown poses are 0
+    feats: Tensor  # (B, N, F)
+    sizes: Tensor  # (B, N, 2)
+    mask: Tensor  # (B, N) bool
+    known: Tensor  # (B, N) bool
+    fixed: Tensor  # (B, N) bool
+    lo: Tensor  # (B, 2) lower bounds
+    hi: Tensor  # (B, 2) upper bounds
+
+    def __len__(self) -> int:
+        return self.poses.shape[0]
+
+    def index(self, idx: Tensor | Sequence[int]) -> SceneTensors:
+        """Rows ``idx`` (an index tensor or list)."""
+        idx = torch.as_tensor(idx, dtype=torch.long)
+        return SceneTensors(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+    def repeat(self, k: int) -> SceneTensors:
+        """Each scene ``k`` times in a row: ``(B * k, ...)``."""
+        return SceneTensors(
+            *(getattr(self, f).repeat_interleave(k, dim=0) for f in self.__dataclass_fields__)
+        )
+
+
+def batch_scenes(
+    scenes: Sequence[Scene], encoder: Encoder, dtype: torch.dtype = torch.float32
+) -> SceneTensors:
+    """Encode and pad scenes of possibly different sizes into one batch."""
+    if not scenes:
+        raise SceneError("batch_scenes: no scenes given")
+    b, n = len(scenes), max(len(s) for s in scenes)
+    out = SceneTensors(
+        poses=torch.zeros(b, n, 3, dtype=dtype),
+        feats=torch.zeros(b, n, encoder.dim, dtype=dtype),
+        sizes=torch.zeros(b, n, 2, dtype=dtype),
+        mask=torch.zeros(b, n, dtype=torch.bool),
+        known=torch.zeros(b, n, dtype=torch.bool),
+        fixed=torch.zeros(b, n, dtype=torch.bool),
+        lo=torch.zeros(b, 2, dtype=dtype),
+        hi=torch.zeros(b, 2, dtype=dtype),
+    )
+    for k, s in enumerate(scenes):
+        m = len(s)
+        out.poses[k, :m] = torch.as_tensor(s.poses(), dtype=dtype)
+        out.feats[k, :m] = torch.as_tensor(encode_scene(s, encoder), dtype=dtype)
+        out.sizes[k, :m] = torch.as_tensor(s.sizes(), dtype=dtype)
+        out.mask[k, :m] = True
+        out.known[k, :m] = torch.tensor([o.pose is not None for o in s.objects])
+        out.fixed[k, :m] = torch.tensor([o.fixed for o in s.objects])
+        out.lo[k] = torch.tensor(s.bounds[0], dtype=dtype)
+        out.hi[k] = torch.tensor(s.bounds[1], dtype=dtype)
+    return out

@@ -1,0 +1,69 @@
+"""The energy network as a CasADi expression, rebuilt from its weights (exact derivatives for IPOPT)."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import torch
+
+__all__ = ["energy_mx"]
+
+
+def _act(name: str, x):
+    if name == "silu":
+        return x / (1 + ca.exp(-x))
+    if name == "softplus":
+        return ca.log1p(ca.exp(x))
+    if name == "leaky_relu":
+        return ca.fmax(x, 0.1 * x)
+    raise ValueError(f"activation {name!r} has no CasADi form")
+
+
+def energy_mx(model, scene, poses):
+    """The model's energy as a CasADi expression of ``poses`` (an ``N x 3`` MX/SX/DM), rebuilt from its weights."""
+    net = model.net
+    cfg = net.cfg
+    st = model.tensors([scene])
+    with torch.no_grad():
+        nodes = net.node_embedding(st.feats, st.sizes)[0].double().numpy().T  # (D, N)
+    sd = {k: v.detach().double().numpy() for k, v in net.state_dict().items()}
+    n = len(scene)
+    ls = cfg.length_scale
+    x, y, th = poses[:, 0], poses[:, 1], poses[:, 2]
+    pairs = [(i, j) for i in range(n) for j in range(n) if i != j]
+    si = np.zeros((n, len(pairs)))
+    sj = np.zeros((n, len(pairs)))
+    for p, (i, j) in enumerate(pairs):
+        si[i, p] = 1.0
+        sj[j, p] = 1.0
+    if cfg.absolute:
+        v = ca.vertcat(ca.DM(nodes), (x / ls).T, (y / ls).T, ca.cos(th).T, ca.sin(th).T)
+        e = None
+    else:
+        v = ca.DM(nodes)
+        cols = []
+        for i, j in pairs:
+            dx, dy = x[i] - x[j], y[i] - y[j]
+            c, s = ca.cos(th[j]), ca.sin(th[j])
+            cols.append(
+                ca.vertcat(
+                    (c * dx + s * dy) / ls,
+                    (-s * dx + c * dy) / ls,
+                    ca.cos(th[i] - th[j]),
+                    ca.sin(th[i] - th[j]),
+                )
+            )
+        e = ca.horzcat(*cols)  # (4, P)
+    for k in range(cfg.layers):
+        pre = f"layers.{k}."
+        a = ca.mtimes(sd[pre + "w_i.weight"], v) + sd[pre + "w_i.bias"]
+        c = ca.mtimes(sd[pre + "w_j.weight"], v)
+        m = ca.mtimes(a, si) + ca.mtimes(c, sj)
+        if e is not None:
+            m = m + ca.mtimes(sd[pre + "w_e.weight"], e)
+        if cfg.message == "mlp":
+            m = ca.mtimes(sd[pre + "out.weight"], _act(cfg.activation, m)) + sd[pre + "out.bias"]
+        v = _act(cfg.activation, ca.mtimes(m, si.T))
+    pooled = ca.sum2(v)
+    h = _act(cfg.activation, ca.mtimes(sd["head.0.weight"], pooled) + sd["head.0.bias"])
+    return ca.mtimes(sd["head.2.weight"], h) + sd["head.2.bias"]

@@ -1,0 +1,103 @@
+"""A trained SceneScore model: the energy network with the encoder it was trained with."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import Tensor, nn
+
+from ..encoders import Encoder, make_encoder
+from ..scene import Scene
+from .batching import SceneTensors, batch_scenes
+from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from .network import EnergyConfig, EnergyNet
+
+__all__ = ["ScoreModel", "load"]
+
+
+class ScoreModel(nn.Module):
+    """The energy network and its encoder: ``E(poses | scene)``, low for arrangements like the examples."""
+
+    def __init__(self, net: EnergyNet, encoder: Encoder, info: dict[str, Any] | None = None):
+        super().__init__()
+        self.net = net
+        self.encoder = encoder
+        self.info: dict[str, Any] = dict(info or {})
+
+    @classmethod
+    def create(cls, encoder: Encoder, **config: Any) -> ScoreModel:
+        """A freshly initialised model for ``encoder`` (``config``: :class:`EnergyConfig` fields)."""
+        return cls(EnergyNet(EnergyConfig(feat_dim=encoder.dim, **config)), encoder)
+
+    @property
+    def config(self) -> EnergyConfig:
+        return self.net.cfg
+
+    def tensors(self, scenes: Sequence[Scene]) -> SceneTensors:
+        """Encode scenes with this model's encoder."""
+        return batch_scenes(scenes, self.encoder, dtype=self.dtype)
+
+    @property
+    def dtype(self) -> torch.dtype:
+        return next(self.net.parameters()).dtype
+
+    def energy(self, poses: Tensor, st: SceneTensors) -> Tensor:
+        """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``."""
+        b = poses.shape[0]
+        feats, sizes, mask = st.feats, st.sizes, st.mask
+        if feats.shape[0] == 1 and b != 1:
+            feats, sizes, mask = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask))
+        return self.net(poses, feats, sizes, mask)
+
+    def energy_fn(self, scene: Scene) -> Callable[[Tensor], Tensor]:
+        """``poses (B, N, 3) -> (B,)`` conditioned on one scene's objects (node embeddings computed once)."""
+        st = self.tensors([scene])
+        return self.energy_fn_for(st)
+
+    def energy_fn_for(self, st: SceneTensors) -> Callable[[Tensor], Tensor]:
+        """As :meth:`energy_fn`, for an already encoded single scene."""
+        nodes = self.net.node_embedding(st.feats, st.sizes)  # (1, N, D)
+
+        def fn(poses: Tensor) -> Tensor:
+            b = poses.shape[0]
+            mask = st.mask.expand(b, -1)
+            return self.net(poses, None, None, mask, nodes=nodes)  # type: ignore[arg-type]
+
+        return fn
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write a safetensors checkpoint atomically (weights, network config, encoder, info)."""
+        write_checkpoint(
+            path,
+            self.net.state_dict(),
+            self.net.cfg.to_dict(),
+            {"name": self.encoder.name, "config": self.encoder.config()},
+            self.info,
+        )
+
+
+def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:
+    """Load a checkpoint written by :meth:`ScoreModel.save` (no pickle); ``encoder`` overrides the stored one."""
+    path = Path(path)
+    ck = read_checkpoint(path)
+    try:
+        cfg = EnergyConfig(**ck.energy_config)
+    except TypeError as e:
+        raise CheckpointError(f"{path}: checkpoint metadata is damaged ({e})") from None
+    if encoder is None:
+        encoder = make_encoder(ck.encoder["name"], ck.encoder.get("config"))
+    if encoder.dim != cfg.feat_dim:
+        raise CheckpointError(
+            f"{path}: encoder {encoder.name!r} makes {encoder.dim}-vectors, the model expects {cfg.feat_dim}"
+        )
+    net = EnergyNet(cfg)
+    try:
+        net.load_state_dict(ck.tensors)
+    except RuntimeError as e:
+        raise CheckpointError(f"{path}: weights do not match the stored config: {e}") from None
+    net.eval()
+    return ScoreModel(net, encoder, ck.info)
