@@ -1,4 +1,4 @@
-"""Drawing scenes: footprints in their colours, with an arrow for each object's heading."""
+"""All drawing: scenes (footprints in their colours, an arrow for each heading), the demo figure, heatmaps."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 
 from .scene import Scene, atomic_write_bytes
 
-__all__ = ["plot_scene", "save_figure"]
+__all__ = ["plot_scene", "save_figure", "draw_scene", "demo_figure", "draw_heatmap"]
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
@@ -107,4 +107,40 @@ def demo_figure(cases, path: str | os.PathLike) -> None:
         err = 100 * float(np.hypot(x - case.truth[0], y - case.truth[1]))
         ax.set_title(f"{case.name}: error {err:.1f} cm", fontsize=9)
     fig.suptitle("SceneScore: missing objects placed by Langevin on the learned energy (truth dashed)")
+    save_figure(fig, path)
+
+
+def draw_heatmap(
+    scene: Scene,
+    name: str,
+    xs: np.ndarray,
+    ys: np.ndarray,
+    e: np.ndarray,
+    minimum: tuple[float, float],
+    path: str | os.PathLike,
+    title: str = "",
+    truth: tuple[float, float] | None = None,
+) -> None:
+    """The energy grid ``e`` under the scene, ``name`` drawn at the grid's ``minimum``; ``truth`` marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.4))
+    im = ax.imshow(
+        e,
+        origin="lower",
+        extent=(xs[0], xs[-1], ys[0], ys[-1]),
+        cmap="viridis_r",
+        vmax=float(np.percentile(e, 60)),
+        alpha=0.9,
+    )
+    draw_scene(ax, scene.with_poses([[minimum[0], minimum[1], 0.0]], [name]), highlight=[name])
+    ax.plot(*minimum, "r+", ms=14, mew=2, label="energy minimum")
+    if truth is not None:
+        ax.plot(*truth, "wx", ms=10, mew=2, label="true relation")
+    ax.legend(loc="lower right", fontsize=7)
+    fig.colorbar(im, ax=ax, label="energy (clipped)")
+    ax.set_title(title, fontsize=9)
     save_figure(fig, path)

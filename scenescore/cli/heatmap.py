@@ -28,8 +28,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..experiments.heatmap import draw_heatmap, energy_grid, grid_minimum
+    from ..heatmap import energy_grid, grid_minimum
     from ..models import load
+    from ..plot import draw_heatmap
     from ..scene import Scene
 
     if args.resolution <= 0:

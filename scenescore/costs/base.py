@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -39,6 +39,7 @@ __all__ = [
     "TermValue",
     "Violation",
     "as_sum",
+    "stack_sums",
     "check_scene_names",
     "CostSpec",
     "SpecContext",
@@ -157,6 +158,19 @@ class Cost:
         if not poses.is_floating_point():
             raise CostError(f"cost {self.name!r}: expected floating-point poses, got {poses.dtype}")
         return poses
+
+    @classmethod
+    def stack(cls, terms: Sequence[Cost], sizes: Sequence[int]) -> Callable[[Tensor], Tensor]:
+        """One batched function for several bound copies of this term (one per problem): rows of its
+        input ``(sum(sizes), N, 3)`` come in contiguous groups of ``sizes``, group ``k`` for ``terms[k]``.
+        The default evaluates each group with its own term; a term that can fuse the groups overrides it."""
+        ends = np.cumsum(sizes).tolist()
+        starts = [0, *ends[:-1]]
+
+        def fn(poses: Tensor) -> Tensor:
+            return torch.cat([t(poses[a:b]) for t, a, b in zip(terms, starts, ends)])
+
+        return fn
 
     def __call__(self, poses: Tensor) -> Tensor:
         if self.needs_scene:
@@ -371,6 +385,27 @@ def _finite(v: Tensor, name: str, poses: Tensor) -> None:
     if not torch.isfinite(v).all():
         bad = int((~torch.isfinite(v)).nonzero()[0, 0])
         raise CostError(f"cost term {name!r} is not finite (NaN or inf) at batch row {bad}")
+
+
+def stack_sums(sums: Sequence[Sum], sizes: Sequence[int]) -> Callable[[Tensor], Tensor]:
+    """One batched function for several problems' costs (see :meth:`Cost.stack`): term by term when
+    every sum has the same terms and weights (so terms can fuse), else each sum on its own group."""
+    first = sums[0]
+    same = all(
+        [(w, c.name, type(c)) for w, c in s.items] == [(w, c.name, type(c)) for w, c in first.items]
+        for s in sums
+    )
+    if not same:
+        return Cost.stack(sums, sizes)
+    parts = [(w, type(c).stack([s.items[k][1] for s in sums], sizes)) for k, (w, c) in enumerate(first.items)]
+
+    def fn(poses: Tensor) -> Tensor:
+        total = poses.new_zeros(poses.shape[0])
+        for w, f in parts:
+            total = total + w * f(poses)
+        return total
+
+    return fn
 
 
 def as_sum(cost: Cost) -> Sum:

@@ -16,75 +16,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
-from ..models import ScoreModel
+from ..heatmap import energy_grid, grid_minimum
+from ..plot import draw_heatmap
 from ..scenarios import DeskScenario
-from ..scene import Scene
 from ..training import TrainConfig, train
 from .report import Row, format_table
 
-__all__ = ["energy_grid", "run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES", "draw_heatmap"]
+__all__ = ["run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES"]
 
 PEN_DISTANCES = (0.14, 0.21, 0.28)
 BOOK = (0.0, 0.0, 0.0)
-
-
-def energy_grid(
-    model: ScoreModel, scene: Scene, name: str, resolution: float = 0.01, theta: float = 0.0
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Energy with ``name`` at every grid point of the scene's bounds (heading 0), the rest as they are.
-    ``theta``: the object's heading. Returns ``(xs, ys, E)`` with ``E[j, i]`` at ``(xs[i], ys[j])``."""
-    (x0, y0), (x1, y1) = scene.bounds
-    xs = np.arange(x0 + resolution / 2, x1, resolution)
-    ys = np.arange(y0 + resolution / 2, y1, resolution)
-    gx, gy = np.meshgrid(xs, ys)
-    base = scene.poses()  # a null pose (the moving object's) is filled, then overwritten
-    k = scene.index(name)
-    poses = np.repeat(base[None], gx.size, axis=0)
-    poses[:, k, 0], poses[:, k, 1], poses[:, k, 2] = gx.ravel(), gy.ravel(), theta
-    fn = model.energy_fn(scene.with_poses(base))
-    out = []
-    with torch.no_grad():
-        for chunk in range(0, len(poses), 4096):
-            x = torch.as_tensor(poses[chunk : chunk + 4096], dtype=model.dtype)
-            out.append(fn(x).double().numpy())
-    return xs, ys, np.concatenate(out).reshape(gx.shape)
-
-
-def grid_minimum(xs: np.ndarray, ys: np.ndarray, e: np.ndarray) -> tuple[float, float]:
-    j, i = np.unravel_index(int(np.argmin(e)), e.shape)
-    return float(xs[i]), float(ys[j])
-
-
-def draw_heatmap(
-    scene: Scene, name: str, xs, ys, e, minimum, path: str | Path, title: str = "", truth=None
-) -> None:
-    """The energy grid ``e`` under the scene, ``name`` drawn at the grid's ``minimum``; ``truth`` marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..plot import draw_scene, save_figure
-
-    fig, ax = plt.subplots(figsize=(6, 4.4))
-    im = ax.imshow(
-        e,
-        origin="lower",
-        extent=(xs[0], xs[-1], ys[0], ys[-1]),
-        cmap="viridis_r",
-        vmax=float(np.percentile(e, 60)),
-        alpha=0.9,
-    )
-    draw_scene(ax, scene.with_poses([[minimum[0], minimum[1], 0.0]], [name]), highlight=[name])
-    ax.plot(*minimum, "r+", ms=14, mew=2, label="energy minimum")
-    if truth is not None:
-        ax.plot(*truth, "wx", ms=10, mew=2, label="true relation")
-    ax.legend(loc="lower right", fontsize=7)
-    fig.colorbar(im, ax=ax, label="energy (clipped)")
-    ax.set_title(title, fontsize=9)
-    save_figure(fig, path)
 
 
 @dataclass

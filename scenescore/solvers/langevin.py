@@ -15,15 +15,18 @@ distinct.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor
 
-from ..problem import FEASIBILITY_TOL, Problem
+from ..costs.base import stack_sums
+from ..problem import FEASIBILITY_TOL, Problem, ProblemError
 from ..sampling import SAMPLING, LangevinConfig, langevin, screen
-from .base import StageSolver
+from .base import StageSolver, torch_threads
 from .projection import LinearisedProjection
 from .result import Result, Status, make_result
 
@@ -88,50 +91,89 @@ class LangevinSolver(StageSolver):
         pool), one for small ones."""
         return torch.get_num_threads() if self.options.particles >= 256 else 1
 
+    def solve_many(self, problems: Sequence[Problem], seed: int = 0) -> list[Result]:
+        """Several problems with the same number of objects in one batched chain (particles in contiguous
+        groups, one per problem): the same answers in distribution as solving each, in far fewer, larger
+        tensor operations."""
+        if not problems:
+            return []
+        n = self.options.threads if self.options.threads is not None else self.default_threads(problems[0])
+        with torch_threads(n) as used:
+            out = self._run(list(problems), None, seed)
+        for r in out:
+            r.threads = used
+        return out
+
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
-        o = self.options
+        return self._run([problem], init, seed)[0]
+
+    def _run(self, problems: list[Problem], init: Tensor | None, seed: int) -> list[Result]:
+        o, cfg = self.options, self.options.chain
         t0 = time.perf_counter()
+        n = problems[0].n
+        if any(p.n != n for p in problems):
+            raise ProblemError("langevin: problems solved together must have the same number of objects")
         gen = torch.Generator().manual_seed(int(seed))
-        movable = torch.as_tensor(problem.movable_mask)
-        if init is not None:
-            x0 = problem.full(init)
-        elif o.candidates > o.particles:
-            x0 = screen(problem.cost, problem.initial(o.candidates, gen), o.particles)
-        else:
-            x0 = problem.initial(o.particles, gen)
-        terms = problem.cost.constraint_terms
-        qp = LinearisedProjection(problem) if o.projection == "qp" else None
+        starts = []
+        for p in problems:
+            if init is not None:
+                starts.append(p.full(init))
+            elif o.candidates > o.particles:
+                starts.append(screen(p.cost, p.initial(o.candidates, gen), o.particles))
+            else:
+                starts.append(p.initial(o.particles, gen))
+        sizes = [len(x) for x in starts]
+        ends = np.cumsum(sizes).tolist()
+        spans = list(zip([0, *ends[:-1]], ends))
+        masks = [torch.as_tensor(p.movable_mask) for p in problems]
+        movable = torch.cat([m[None].expand(k, n) for m, k in zip(masks, sizes)])  # (B, N)
+        lo = torch.cat([p.lo[None].expand(k, 2) for p, k in zip(problems, sizes)])  # (B, 2)
+        hi = torch.cat([p.hi[None].expand(k, 2) for p, k in zip(problems, sizes)])
+        qps = [LinearisedProjection(p) if o.projection == "qp" else None for p in problems]
+
+        def project_one(k: int, x: Tensor) -> Tensor:
+            for c in problems[k].cost.constraint_terms:
+                x = c.project(x, masks[k])
+            qp = qps[k]
+            return x if qp is None else qp(x)
 
         def project(x: Tensor) -> Tensor:
             if o.projection == "none":
                 return x
-            for c in terms:
-                x = c.project(x, movable)
-            if qp is not None:
-                x = qp(x)
-            return x
+            if len(problems) == 1:
+                return project_one(0, x)
+            return torch.cat([project_one(k, x[a:b]) for k, (a, b) in enumerate(spans)])
 
-        cfg = o.chain
+        cost = problems[0].cost if len(problems) == 1 else stack_sums([p.cost for p in problems], sizes)
         t1 = time.perf_counter()
-        x, e = langevin(problem.cost, project(x0), movable, problem.lo, problem.hi, cfg, gen, project=project)
-        with torch.no_grad():
-            viol = problem.violation(x)
-        ok = viol <= FEASIBILITY_TOL
-        rank = torch.where(ok, e, e + 1e12 + viol)  # feasible particles first, then by cost
-        best = int(torch.argmin(rank))
-        t2 = time.perf_counter()
-        msg = f"{int(ok.sum())} of {len(e)} particles within the violation tolerance"
-        if qp is not None:
-            msg += f"; {qp.qp_solves} projection QPs"
-        return make_result(
-            problem,
-            self.name,
-            x[best],
-            Status.SAMPLED,
-            cfg.steps + cfg.final_descent,
-            t1 - t0,
-            t2 - t1,
-            message=msg if not ok[best] else "",
-            samples=x,
-            sample_costs=e,
+        groups = len(problems) if len(set(sizes)) == 1 else 1
+        x, e = langevin(
+            cost, project(torch.cat(starts)), movable, lo, hi, cfg, gen, project=project, groups=groups
         )
+        t2 = time.perf_counter()
+        out = []
+        for k, (p, (a, b)) in enumerate(zip(problems, spans)):
+            xs, es = x[a:b], e[a:b]
+            with torch.no_grad():
+                viol = p.violation(xs)
+            ok = viol <= FEASIBILITY_TOL
+            best = int(torch.argmin(torch.where(ok, es, es + 1e12 + viol)))  # feasible first, then by cost
+            msg = f"{int(ok.sum())} of {len(es)} particles within the violation tolerance"
+            qp = qps[k]
+            if qp is not None:
+                msg += f"; {qp.qp_solves} projection QPs"
+            out.append(
+                make_result(
+                    p,
+                    self.name,
+                    xs[best],
+                    Status.SAMPLED,
+                    cfg.steps + cfg.final_descent,
+                    (t1 - t0) / len(problems),
+                    (t2 - t1) / len(problems),
+                    message=msg if not ok[best] else "",
+                    samples=xs,
+                    sample_costs=es,
+                )
+            )
+        return out

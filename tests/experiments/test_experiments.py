@@ -8,6 +8,7 @@ import torch
 
 from scenescore.cli import main
 from scenescore.experiments import heatmap, novel
+from scenescore.heatmap import energy_grid, grid_minimum
 from scenescore.scenarios import DeskScenario
 from scenescore.training import TrainConfig, train
 
@@ -51,9 +52,9 @@ def desk_model():
 
 def test_energy_grid_and_minimum(desk_model):
     scene = DeskScenario().arrange((0, 0, 0), 0.2)
-    xs, ys, e = heatmap.energy_grid(desk_model, scene, "mug", resolution=0.05)
+    xs, ys, e = energy_grid(desk_model, scene, "mug", resolution=0.05)
     assert e.shape == (len(ys), len(xs)) and e.shape == (16, 24)
-    mn = heatmap.grid_minimum(xs, ys, e)
+    mn = grid_minimum(xs, ys, e)
     j, i = list(ys).index(mn[1]), list(xs).index(mn[0])
     assert e[j, i] == e.min()
     # the mug's own heading does not matter to the grid, the rest is fixed: values differ over the grid

@@ -1,0 +1,39 @@
+"""The learned energy over one object's position, the rest fixed: a grid and its minimum."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from .models import ScoreModel
+from .scene import Scene
+
+__all__ = ["energy_grid", "grid_minimum"]
+
+
+def energy_grid(
+    model: ScoreModel, scene: Scene, name: str, resolution: float = 0.01, theta: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Energy with ``name`` at every grid point of the scene's bounds (heading 0), the rest as they are.
+    ``theta``: the object's heading. Returns ``(xs, ys, E)`` with ``E[j, i]`` at ``(xs[i], ys[j])``."""
+    (x0, y0), (x1, y1) = scene.bounds
+    xs = np.arange(x0 + resolution / 2, x1, resolution)
+    ys = np.arange(y0 + resolution / 2, y1, resolution)
+    gx, gy = np.meshgrid(xs, ys)
+    base = scene.poses()  # a null pose (the moving object's) is filled, then overwritten
+    k = scene.index(name)
+    poses = np.repeat(base[None], gx.size, axis=0)
+    poses[:, k, 0], poses[:, k, 1], poses[:, k, 2] = gx.ravel(), gy.ravel(), theta
+    fn = model.energy_fn(scene.with_poses(base))
+    out = []
+    with torch.no_grad():
+        for chunk in range(0, len(poses), 4096):
+            x = torch.as_tensor(poses[chunk : chunk + 4096], dtype=model.dtype)
+            out.append(fn(x).double().numpy())
+    return xs, ys, np.concatenate(out).reshape(gx.shape)
+
+
+def grid_minimum(xs: np.ndarray, ys: np.ndarray, e: np.ndarray) -> tuple[float, float]:
+    """The grid point of lowest energy ``(x, y)``."""
+    j, i = np.unravel_index(int(np.argmin(e)), e.shape)
+    return float(xs[i]), float(ys[j])
