@@ -1,20 +1,34 @@
-"""The missing-object protocol: cases with one pose removed, errors against the truth, the oracle.
+"""The missing-object protocol: cases with one pose removed, errors against the truth, the oracle;
+and :func:`evaluate`, the leave-one-object-out table that ``scenescore train`` prints on its held-out
+scenes and ``scenescore evaluate`` on any labelled set.
 
-Shared by ``scenescore demo``, the experiments and (later) validation in training: position error
-``t`` in cm, orientation error ``R`` in degrees (none for rotationally symmetric categories).
+Position error ``t`` in cm, orientation error ``R`` in degrees (none for rotationally symmetric
+categories: in the experiments the scenario names them, in :func:`evaluate` they are the round disks).
 """
 
 from __future__ import annotations
 
+import json
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .scene import Scene
+from .scene import Scene, SceneError, SceneObject
 
-__all__ = ["MissingCase", "make_cases", "score_cases", "angle_error_deg", "OraclePlacer"]
+__all__ = [
+    "MissingCase",
+    "make_cases",
+    "leave_one_out",
+    "score_cases",
+    "angle_error_deg",
+    "OraclePlacer",
+    "CategoryErrors",
+    "EvalReport",
+    "evaluate",
+]
 
 
 @dataclass
@@ -83,3 +97,152 @@ class OraclePlacer:
             names = s.unknown
             out.append(s.with_poses([self.scenario.oracle(s, n) for n in names], names))
         return out
+
+
+def leave_one_out(scenes: Sequence[Scene], objects: Sequence[str] | None = None) -> list[MissingCase]:
+    """Every object that may move (or only those called ``objects``), masked in turn: one case each."""
+    cases = []
+    for s in scenes:
+        for o in s.objects:
+            if o.pose is None or o.fixed or (objects is not None and o.name not in objects):
+                continue
+            cases.append(MissingCase(s.without(o.name), o.name, o.category, o.pose))
+    return cases
+
+
+def _round(o: SceneObject) -> bool:
+    """A round disk: its heading means nothing."""
+    return o.shape_kind == "disk" and abs(o.size[0] - o.size[1]) <= 1e-9 * max(o.size)
+
+
+@dataclass
+class CategoryErrors:
+    """Leave-one-object-out errors of one category: SceneScore's and the nearest-neighbour baseline's."""
+
+    category: str
+    placements: int
+    t_cm: float
+    R_deg: float | None
+    baseline_t_cm: float | None = None
+    baseline_R_deg: float | None = None
+    baseline_missed: int = 0  # cases the baseline could not fill (no training scene had the objects)
+
+
+@dataclass
+class EvalReport:
+    """:func:`evaluate`'s figures: per category, the means, the held-out InfoNCE loss."""
+
+    categories: list[CategoryErrors]
+    scenes: int
+    placements: int
+    mean_t_cm: float
+    mean_R_deg: float | None
+    heldout_loss: float
+    chance_loss: float
+    seed: int
+    baseline: str | None = None  # the baseline's name, when it ran
+    flagged: int = 0  # placements flagged as out of distribution
+    examples: list[tuple[MissingCase, Scene]] = field(default_factory=list, repr=False)  # a few, for plots
+
+    def table(self) -> str:
+        """The report as aligned text."""
+
+        def f(v: float | None) -> str:
+            return "-" if v is None or not math.isfinite(v) else f"{v:.2f}"
+
+        head = f"{'category':16s} {'n':>4s} {'t (cm)':>8s} {'R (deg)':>8s}"
+        if self.baseline:
+            head += f"   {'NN t':>8s} {'NN R':>8s}"
+        lines = [head]
+        for c in self.categories:
+            line = f"{c.category:16s} {c.placements:4d} {f(c.t_cm):>8s} {f(c.R_deg):>8s}"
+            if self.baseline:
+                line += f"   {f(c.baseline_t_cm):>8s} {f(c.baseline_R_deg):>8s}"
+                if c.baseline_missed:
+                    line += f"  ({c.baseline_missed} not filled)"
+            lines.append(line)
+        mean = f"{'mean':16s} {self.placements:4d} {f(self.mean_t_cm):>8s} {f(self.mean_R_deg):>8s}"
+        lines.append(mean)
+        lines.append(
+            f"held-out InfoNCE loss {self.heldout_loss:.3f} (chance {self.chance_loss:.3f}); "
+            f"{self.scenes} scenes, {self.placements} placements, {self.flagged} flagged out of distribution"
+            + (f"; NN = {self.baseline}" if self.baseline else "")
+        )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d.pop("examples")
+        return d
+
+
+def evaluate(
+    model: Any,
+    scenes: Sequence[Scene],
+    train_scenes: Sequence[Scene] | None = None,
+    objects: Sequence[str] | None = None,
+    seed: int = 0,
+    progress: bool = False,
+) -> EvalReport:
+    """Place every movable object of ``scenes`` back in turn (or only ``objects``) and tabulate the errors
+    per category, beside the nearest-neighbour baseline fitted on ``train_scenes`` when given, with the
+    held-out InfoNCE loss. Deterministic in ``seed``: ``scenescore train`` and ``scenescore evaluate``
+    print the same figures for the same scenes."""
+    from .baselines import NearestNeighbour
+    from .placement import SceneScorePlacer
+    from .training import heldout_loss
+
+    cases = leave_one_out(scenes, objects)
+    if not cases:
+        raise SceneError("evaluate: no object to place (every object is fixed, unknown or not named)")
+    placer = SceneScorePlacer(progress=progress)
+    placer.model = model
+    pred = placer.predict([c.scene for c in cases], seed=seed)
+    base = None
+    if train_scenes:
+        # the baseline never remembers a scene it is asked about (so --train-data may hold them too)
+        asked = {json.dumps(s.to_dict(), sort_keys=True) for s in scenes}
+        memory = [s for s in train_scenes if json.dumps(s.to_dict(), sort_keys=True) not in asked]
+        base = NearestNeighbour().fit(memory).predict([c.scene for c in cases])
+    cats: dict[str, list[int]] = {}
+    for k, c in enumerate(cases):
+        cats.setdefault(c.category, []).append(k)
+    rows = []
+
+    def errs(k: int, p: Scene) -> tuple[float, float | None]:
+        c, pose = cases[k], p[cases[k].name].pose
+        if pose is None:
+            return math.nan, None
+        t = 100 * math.hypot(pose[0] - c.truth[0], pose[1] - c.truth[1])
+        return t, None if _round(c.scene[c.name]) else angle_error_deg(pose[2], c.truth[2])
+
+    for cat, ks in cats.items():
+        ours = [errs(k, pred[k]) for k in ks]
+        row = CategoryErrors(cat, len(ks), float(np.mean([t for t, _ in ours])), _mean([r for _, r in ours]))
+        if base is not None:
+            theirs = [errs(k, base[k]) for k in ks]
+            filled = [(t, r) for t, r in theirs if math.isfinite(t)]
+            row.baseline_t_cm = float(np.mean([t for t, _ in filled])) if filled else None
+            row.baseline_R_deg = _mean([r for _, r in filled])
+            row.baseline_missed = len(theirs) - len(filled)
+        rows.append(row)
+    loss, chance = heldout_loss(model, scenes, seed=seed)
+    flagged = sum(bool(p.meta.get("placement", {}).get(c.name, {}).get("flags")) for c, p in zip(cases, pred))
+    return EvalReport(
+        categories=rows,
+        scenes=len(scenes),
+        placements=len(cases),
+        mean_t_cm=float(np.mean([r.t_cm for r in rows])),
+        mean_R_deg=_mean([r.R_deg for r in rows]),
+        heldout_loss=loss,
+        chance_loss=chance,
+        seed=seed,
+        baseline="Nearest-Nbr" if base is not None else None,
+        flagged=flagged,
+        examples=[(cases[k], pred[k]) for k in range(0, len(cases), max(1, len(cases) // 3))][:3],
+    )
+
+
+def _mean(values: Sequence[float | None]) -> float | None:
+    v = [x for x in values if x is not None]
+    return float(np.mean(v)) if v else None

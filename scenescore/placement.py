@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Protocol
 
-import numpy as np
 from tqdm.auto import tqdm
 
 from .costs import LearnedEnergy
@@ -19,7 +18,7 @@ from .models import ScoreModel
 from .problem import Problem
 from .sampling import PLACEMENT
 from .scene import Scene, SceneError
-from .solvers import solve
+from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
 from .training import TrainConfig, train
 
@@ -51,14 +50,19 @@ def place_many(
     for idx in groups.values():
         results = solver.solve_many([placement_problem(model, scenes[i]) for i in idx], seed=seed)
         for i, r in zip(idx, results):
-            out[i] = _filled(scenes[i], r.poses)
+            out[i] = _filled(scenes[i], r)
     return out
 
 
-def _filled(scene: Scene, poses: np.ndarray) -> Scene:
-    """``scene`` with its unknown poses taken from ``poses (N, 3)``."""
+def _filled(scene: Scene, result: Result) -> Scene:
+    """``scene`` with its unknown poses from ``result``, and their confidence in ``meta["placement"]``."""
     names = scene.unknown
-    return scene.with_poses(poses[[scene.index(n) for n in names]], names)
+    out = scene.with_poses(result.poses[[scene.index(n) for n in names]], names)
+    out.meta = {
+        **out.meta,
+        "placement": {n: result.confidence[n].to_dict() for n in names if n in result.confidence},
+    }
+    return out
 
 
 def place(model: ScoreModel, scene: Scene, options: LangevinOptions | None = None, seed: int = 0) -> Scene:
@@ -70,7 +74,7 @@ def place(model: ScoreModel, scene: Scene, options: LangevinOptions | None = Non
     if not scene.unknown:
         return scene.copy()
     r = solve(placement_problem(model, scene), LangevinSolver(options or PLACE), seed=seed)
-    return _filled(scene, r.poses)
+    return _filled(scene, r)
 
 
 class Placer(Protocol):

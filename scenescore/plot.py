@@ -5,12 +5,13 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence
+from typing import Any, cast
 
 import numpy as np
 
 from .scene import Scene, atomic_write_bytes
 
-__all__ = ["plot_scene", "save_figure", "draw_scene", "demo_figure", "draw_heatmap"]
+__all__ = ["plot_scene", "save_figure", "draw_scene", "demo_figure", "draw_heatmap", "training_figure"]
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
@@ -143,4 +144,35 @@ def draw_heatmap(
     ax.legend(loc="lower right", fontsize=7)
     fig.colorbar(im, ax=ax, label="energy (clipped)")
     ax.set_title(title, fontsize=9)
+    save_figure(fig, path)
+
+
+def training_figure(
+    history: Sequence[float], chance: float, examples: Sequence[tuple[Any, Scene]], path: str | os.PathLike
+) -> None:
+    """The learning curve (mean InfoNCE loss per 10 iterations, chance dashed) beside up to three
+    held-out placements (placed object outlined in red, truth dashed, flagged ones named so)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    shown = list(examples)[:3]
+    fig, axes = plt.subplots(1, 1 + len(shown), figsize=(4.2 * (1 + len(shown)), 4), squeeze=False)
+    ax = axes[0, 0]
+    its = 10 * np.arange(len(history)) + 5
+    ax.plot(its, history, color="C0", label="training loss")
+    ax.axhline(chance, color="grey", ls="--", label=f"chance ({chance:.2f})")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("InfoNCE loss")
+    ax.set_title("learning curve", fontsize=9)
+    ax.legend(fontsize=7)
+    for ax, (case, pred) in zip(axes[0, 1:], shown):
+        truth = pred.with_poses([case.truth], [case.name])
+        draw_scene(ax, pred, highlight=[case.name], ghosts=truth)
+        x, y, _ = cast(tuple[float, float, float], pred[case.name].pose)
+        err = 100 * float(np.hypot(x - case.truth[0], y - case.truth[1]))
+        flags = pred.meta.get("placement", {}).get(case.name, {}).get("flags")
+        ax.set_title(f"held out: {case.name}, {err:.1f} cm off" + (" (flagged)" if flags else ""), fontsize=9)
+    fig.tight_layout()
     save_figure(fig, path)

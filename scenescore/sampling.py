@@ -61,10 +61,11 @@ class LangevinConfig:
 
     def step_size(self, t: int | Tensor) -> float | Tensor:
         """``lambda_t``, decaying from ``step_init`` to ``step_final`` over ``steps`` (then constant)."""
+        span = max(self.steps - 1, 1)
         if isinstance(t, Tensor):
-            frac = (1.0 - t.clamp(max=self.steps - 1) / max(self.steps - 1, 1)).clamp(min=0.0)
-        else:
-            frac = max(1.0 - min(t, self.steps - 1) / max(self.steps - 1, 1), 0.0)
+            frac_t = (1.0 - t.clamp(max=self.steps - 1) / span).clamp(min=0.0)
+            return (self.step_init - self.step_final) * frac_t**self.power + self.step_final
+        frac = max(1.0 - min(t, self.steps - 1) / span, 0.0)
         return (self.step_init - self.step_final) * frac**self.power + self.step_final
 
     def clip(self, lam: float | Tensor) -> float | Tensor:
@@ -175,7 +176,7 @@ def langevin(
         gn = g * scale  # gradient in normalised coordinates
         w = torch.randn(x.shape, generator=generator, dtype=dtype) * noise if noise > 0 else 0.0
         clip = torch.as_tensor(cfg.clip(lam), dtype=dtype)
-        delta = torch.maximum(torch.minimum(lam * (gn + w), clip), -clip)  # type: ignore[arg-type]
+        delta = torch.maximum(torch.minimum(lam * (gn + w), clip), -clip)
         moved = x - delta * scale
         moved = torch.cat(
             [
@@ -200,7 +201,7 @@ def langevin(
         if age is None:
             lam: float | Tensor = cfg.step_size(t)
         else:
-            lam = cfg.step_size((age + t).to(dtype)).reshape(b, 1, 1)  # per-chain schedule
+            lam = torch.as_tensor(cfg.step_size((age + t).to(dtype))).reshape(b, 1, 1)  # per-chain schedule
         x = step(x, lam, cfg.noise)
     for _ in range(cfg.final_descent):
         x = step(x, cfg.step_final, 0.0)

@@ -21,7 +21,7 @@ import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -123,7 +123,7 @@ class SceneObject:
         if self.shape_kind == "disk":
             k = np.linspace(0, 2 * np.pi, 24, endpoint=False)
             return np.stack([length / 2 * np.cos(k), width / 2 * np.sin(k)], axis=1)
-        return np.asarray(self.shape["polygon"], dtype=float)
+        return np.asarray(cast(dict, self.shape)["polygon"], dtype=float)
 
     def world_polygon(self, pose: Sequence[float] | None = None) -> np.ndarray:
         """The outline placed at ``pose`` (default: the object's own pose)."""
@@ -288,6 +288,19 @@ class Scene:
 
     def copy(self) -> Scene:
         return copy.deepcopy(self)
+
+    def scaled(self, k: float) -> Scene:
+        """Every length times ``k``: positions, sizes, polygon outlines and bounds (headings unchanged)."""
+        out = self.copy()
+        for o in out.objects:
+            o.size = (o.size[0] * k, o.size[1] * k)
+            if o.pose is not None:
+                o.pose = (o.pose[0] * k, o.pose[1] * k, o.pose[2])
+            if isinstance(o.shape, dict):
+                o.shape = {"polygon": [[x * k, y * k] for x, y in o.shape["polygon"]]}
+        (x0, y0), (x1, y1) = out.bounds
+        out.bounds = ((x0 * k, y0 * k), (x1 * k, y1 * k))
+        return out
 
     # -- JSON -----------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

@@ -17,16 +17,26 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .encoders import Encoder, FootprintEncoder
 from .models import SceneTensors, ScoreModel
+from .models.trust import reference
 from .sampling import TRAINING, LangevinConfig, langevin, uniform_init
 from .scene import Scene, SceneError
 
-__all__ = ["TrainConfig", "train", "infonce_loss", "perturbed_negatives"]
+__all__ = [
+    "TrainConfig",
+    "train",
+    "infonce_loss",
+    "perturbed_negatives",
+    "data_scale",
+    "heldout_loss",
+    "split_validation",
+]
 
 
 @dataclass
@@ -41,7 +51,10 @@ class TrainConfig:
     # each chain follows this schedule from its (re)start: coarse moves first, then fine ones
     chain: LangevinConfig = TRAINING
     perturbed: int = 0  # extra counter-examples: one object's true pose moved by noise of a random scale
-    perturb_pos: tuple[float, float] = (0.005, 0.2)  # log-uniform range of the position noise's std (m)
+    perturb_pos: tuple[float, float] = (
+        0.05,
+        2.0,
+    )  # log-uniform range of the position noise's std (length scales)
     perturb_angle: tuple[float, float] = (0.03, 1.5)  # log-uniform range of the angle noise's std (rad)
     # std of Gaussian noise added to the object features, per object and iteration: the energy leans
     # on geometry more than on exact features, which carries it to unseen objects (Table 2)
@@ -55,6 +68,11 @@ class TrainConfig:
     grad_penalty: float = 0.0  # optional penalty on the energy's gradient norm at counter-examples
     grad_margin: float = 10.0
     model: dict[str, Any] = field(default_factory=dict)  # EnergyConfig fields (hidden, layers, ...)
+    # lengths in the data's own unit, stored in the checkpoint: None derives them (see data_scale);
+    # a number (metres; for edge_range, length scales) sets them by hand
+    length_scale: float | None = None
+    edge_range: float | None = None
+    saturate_edges: bool = True  # derive edge_range (False: linear edge positions, as before)
 
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):
@@ -78,13 +96,33 @@ def _log_uniform(n: int, lo: float, hi: float, gen: torch.Generator) -> torch.Te
     return torch.exp(math.log(lo) + torch.rand(n, generator=gen) * (math.log(hi) - math.log(lo)))
 
 
-def perturbed_negatives(batch: SceneTensors, k: int, cfg: TrainConfig, gen: torch.Generator) -> torch.Tensor:
+def data_scale(scenes: Sequence[Scene]) -> tuple[float, float]:
+    """The data's length scale and largest offset: ``(L, R)``.
+
+    ``L`` (metres) is the median over every object of half its footprint's longer side; ``R`` is the
+    largest distance between two objects' centres in any scene, in units of ``L``. Both scale with the
+    data, exactly for powers of two: scaling every length by ``k`` scales ``L`` by ``k`` and keeps ``R``.
+    """
+    halves = sorted(max(o.size) / 2 for s in scenes for o in s.objects)
+    n = len(halves)
+    length = halves[n // 2] if n % 2 else (halves[n // 2 - 1] + halves[n // 2]) / 2
+    far = 0.0
+    for s in scenes:
+        p = s.poses()[:, :2]
+        if len(p) > 1:
+            far = max(far, float(np.sqrt(((p[:, None] - p[None]) ** 2).sum(-1)).max()))
+    return float(length), max(far / length, 1.0)
+
+
+def perturbed_negatives(
+    batch: SceneTensors, k: int, cfg: TrainConfig, gen: torch.Generator, length_scale: float
+) -> torch.Tensor:
     """``k`` copies of each true scene with one movable object displaced: ``(B * k, N, 3)``."""
     rep = batch.repeat(k)
     m, n = rep.mask.shape
     real = rep.mask & ~rep.fixed
     pick = torch.rand(m, n, generator=gen).masked_fill(~real, 2.0).argmin(dim=1)  # (M,)
-    sp = _log_uniform(m, *cfg.perturb_pos, gen)
+    sp = _log_uniform(m, *cfg.perturb_pos, gen) * length_scale
     sa = _log_uniform(m, *cfg.perturb_angle, gen)
     noise = torch.randn(m, 3, generator=gen) * torch.stack([sp, sp, sa], dim=1)
     x = rep.poses.clone()
@@ -146,10 +184,14 @@ def train(
     encoder: Encoder | None = None,
     seed: int = 0,
     progress: bool = True,
+    validation: Sequence[Scene] = (),
 ) -> ScoreModel:
-    """Train a :class:`ScoreModel` on example arrangements (every pose must be known)."""
+    """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
+
+    ``validation``: held-out scenes (not trained on) whose energies become the trust reference that
+    placements are judged against; without them the training scenes' energies are used.
+    """
     cfg = config or TrainConfig()
-    encoder = encoder or FootprintEncoder()
     if len(scenes) < 2:
         raise SceneError(f"train: need at least 2 example scenes, got {len(scenes)}")
     for i, s in enumerate(scenes):
@@ -159,7 +201,13 @@ def train(
             )
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
-    model = ScoreModel.create(encoder, **cfg.model)
+    length, far = data_scale(scenes)
+    length = cfg.length_scale or cfg.model.get("length_scale") or length
+    reach = cfg.edge_range or cfg.model.get("edge_range") or (far if cfg.saturate_edges else None)
+    encoder = encoder or FootprintEncoder()
+    if isinstance(encoder, FootprintEncoder):
+        encoder = encoder.scaled(length)  # sizes in the data's unit
+    model = ScoreModel.create(encoder, **{**cfg.model, "length_scale": length, "edge_range": reach})
     data = model.tensors(scenes)
     s_count = len(scenes)
     buf = _ChainBuffer(data, cfg.negatives, cfg, gen)
@@ -201,7 +249,7 @@ def train(
         e_pos = model.energy(batch.poses, batch)
         e_neg = model.energy(neg, rep).reshape(bs, k)
         if cfg.perturbed:
-            pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen)
+            pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
             e_pert = model.energy(pert, batch.repeat(cfg.perturbed)).reshape(bs, cfg.perturbed)
             e_neg = torch.cat([e_neg, e_pert], dim=1)
         loss = infonce_loss(e_pos, e_neg)
@@ -232,5 +280,57 @@ def train(
         "final_loss": float(sum(history[-50:]) / max(len(history[-50:]), 1)),
         "chance_loss": math.log(k + cfg.perturbed + 1),
         "seconds": round(time.perf_counter() - t0, 2),
+        # the learning curve: the mean loss over each block of 10 iterations
+        "history": [
+            round(sum(history[i : i + 10]) / len(history[i : i + 10]), 4) for i in range(0, len(history), 10)
+        ],
     }
+    model.info["trust"] = reference(model, scenes, validation).to_dict()
     return model
+
+
+def heldout_loss(
+    model: ScoreModel, scenes: Sequence[Scene], negatives: int = 16, seed: int = 0
+) -> tuple[float, float]:
+    """InfoNCE on ``scenes`` against fresh counter-examples (Langevin chains moving every movable object
+    from uniform starts, the training schedule run to its end): ``(loss, chance)``."""
+    gen = torch.Generator().manual_seed(seed)
+    st = model.tensors(scenes)
+    rep = st.repeat(negatives)
+    movable = rep.mask & ~rep.fixed
+    init = torch.where(
+        movable[..., None],
+        uniform_init((rep.mask.shape[0], rep.mask.shape[1]), rep.lo, rep.hi, gen, rep.poses.dtype),
+        rep.poses,
+    )
+
+    def energy(x: torch.Tensor) -> torch.Tensor:
+        return model.energy(x, rep)
+
+    neg, _ = langevin(energy, init, movable, rep.lo, rep.hi, replace(TRAINING, final_descent=0), gen)
+    with torch.no_grad():
+        loss = infonce_loss(
+            model.energy(st.poses, st), model.energy(neg, rep).reshape(len(scenes), negatives)
+        )
+    return float(loss), math.log(negatives + 1)
+
+
+def split_validation(
+    scenes: Sequence[Scene], fraction: float = 0.15, minimum: int = 4, seed: int = 0
+) -> tuple[list[Scene], list[Scene]]:
+    """Hold out about ``fraction`` of the scenes (at least ``minimum``, and at least 2 left to train on),
+    chosen by ``seed``: ``(train, held_out)``; ``fraction == 0`` holds out none."""
+    if not 0 <= fraction < 1:
+        raise SceneError(f"validation fraction: expected a number in [0, 1), got {fraction!r}")
+    if fraction == 0:
+        return list(scenes), []
+    n = len(scenes)
+    k = max(minimum, round(fraction * n))
+    if n - k < 2:
+        raise SceneError(
+            f"validation: {n} scenes are too few to hold out {k} (at least {minimum}) and train on 2 or more; "
+            "pass --val 0 to train on all of them"
+        )
+    order = np.random.default_rng(seed).permutation(n)
+    held = set(order[:k].tolist())
+    return [s for i, s in enumerate(scenes) if i not in held], [s for i, s in enumerate(scenes) if i in held]

@@ -27,6 +27,7 @@ def workdir(tmp_path_factory) -> Path:
     return d
 
 
+@pytest.mark.slow
 def test_compose_costs_example(workdir, capsys):
     import compose_costs
 
@@ -36,6 +37,7 @@ def test_compose_costs_example(workdir, capsys):
     assert "solver langevin:" in out and "bowl_0 ->" in out
 
 
+@pytest.mark.slow
 def test_yaml_example_solves_and_compares(workdir):
     import compare_solvers
 

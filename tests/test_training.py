@@ -3,6 +3,7 @@
 import math
 from dataclasses import replace
 
+import pytest
 import torch
 
 from scenescore import Scene, SceneObject
@@ -35,6 +36,7 @@ PLACE = replace(
 )
 
 
+@pytest.mark.slow
 def test_tiny_training_learns_a_fixed_offset():
     torch.set_num_threads(1)
     model = train(_offset_scenes(24, 0), CFG, seed=0, progress=False)

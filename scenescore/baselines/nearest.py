@@ -9,11 +9,14 @@ over in that scene.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..scene import Scene
+
+_Pose = tuple[float, float, float]
 
 __all__ = ["NearestNeighbour"]
 
@@ -29,8 +32,8 @@ def _match(test: Scene, train: Scene, skip: set[str]) -> tuple[float, dict[str, 
             continue
         if len(tj) < len(ti):
             return float("inf"), {}
-        a = np.array([test.objects[i].pose[:2] for i in ti])
-        b = np.array([train.objects[j].pose[:2] for j in tj])
+        a = np.array([cast(_Pose, test.objects[i].pose)[:2] for i in ti])
+        b = np.array([cast(_Pose, train.objects[j].pose)[:2] for j in tj])
         d = np.linalg.norm(a[:, None] - b[None], axis=-1)
         r, c = linear_sum_assignment(d)
         cost += float(d[r, c].sum())
@@ -54,11 +57,11 @@ class NearestNeighbour:
 
     def _one(self, scene: Scene) -> Scene:
         missing = set(scene.unknown)
-        best = (float("inf"), None, {})
-        for train in self.memory:
-            cost, assign = _match(scene, train, missing)
+        best: tuple[float, Scene | None, dict[str, int]] = (float("inf"), None, {})
+        for candidate in self.memory:
+            cost, assign = _match(scene, candidate, missing)
             if cost < best[0]:
-                best = (cost, train, assign)
+                best = (cost, candidate, assign)
         _, train, assign = best
         out = scene.copy()
         if train is None:
@@ -69,5 +72,5 @@ class NearestNeighbour:
             free = [j for j, o in enumerate(train.objects) if o.category == cat and j not in used]
             if free:
                 used.add(free[0])
-                out = out.with_poses([train.objects[free[0]].pose], [name])
+                out = out.with_poses([cast(_Pose, train.objects[free[0]].pose)], [name])
         return out

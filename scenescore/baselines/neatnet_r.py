@@ -54,8 +54,8 @@ class NeatNetR:
                 if o.fixed or o.pose is None:
                     continue
                 cats.append(o.category)
-                x, y, t = o.pose
-                targets.append([x - ax, y - ay, math.cos(t), math.sin(t)])
+                px, py, t = o.pose
+                targets.append([px - ax, py - ay, math.cos(t), math.sin(t)])
         if not cats:
             raise ValueError("NeatNet-R: no movable object with a pose to learn from")
         torch.manual_seed(seed)

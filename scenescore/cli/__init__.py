@@ -11,7 +11,7 @@ import importlib
 import sys
 
 # modules of this package that add sub-commands, in the order --help lists them
-COMMAND_MODULES = ["demo", "data", "place", "experiment", "problems", "heatmap"]
+COMMAND_MODULES = ["demo", "data", "evaluate", "place", "experiment", "problems", "heatmap"]
 
 
 class UserError(Exception):

@@ -50,6 +50,24 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="semantic encoder: footprint (default for .jsonl), image (default for a folder), clip",
     )
     p.add_argument("--ppm", type=float, default=None, help="pixels per metre of the images (folder input)")
+    p.add_argument(
+        "--val",
+        type=float,
+        default=0.15,
+        help="fraction of the scenes held out for validation (default 0.15, at least 4 scenes; 0: none)",
+    )
+    p.add_argument(
+        "--val-data", type=Path, default=None, help="a .jsonl of held-out scenes to validate on instead"
+    )
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        help="where to write the training report (default: train_report.json beside --out)",
+    )
+    p.add_argument(
+        "--plot", type=Path, default=None, help="draw the learning curve and held-out placements here"
+    )
     add_common(p)
     p.set_defaults(func=run_train)
 
@@ -79,9 +97,13 @@ def run_generate(args: argparse.Namespace) -> int:
 
 
 def run_train(args: argparse.Namespace) -> int:
+    import json
+
     from ..encoders import make_encoder
-    from ..scene import read_jsonl
-    from ..training import TrainConfig, train
+    from ..evaluation import evaluate
+    from ..plot import training_figure
+    from ..scene import atomic_write_text, read_jsonl, write_jsonl
+    from ..training import TrainConfig, split_validation, train
 
     encoder = make_encoder(args.encoder or ("image" if args.data.is_dir() else "footprint"))
     if args.data.is_dir():
@@ -102,11 +124,39 @@ def run_train(args: argparse.Namespace) -> int:
     if args.absolute:
         model_kw["absolute"] = True
     cfg.model.update(model_kw)
-    model = train(scenes, cfg, encoder=encoder, seed=args.seed, progress=not args.quiet)
-    model.save(args.out)
+    if args.val_data is not None:
+        if not args.val_data.exists():
+            raise UserError(f"--val-data {args.val_data}: no such file")
+        train_s, held = scenes, read_jsonl(args.val_data)
+    else:
+        train_s, held = split_validation(scenes, args.val, seed=args.seed)
+    model = train(train_s, cfg, encoder=encoder, seed=args.seed, progress=not args.quiet, validation=held)
     info = model.info
     print(
         f"trained on {info['scenes']} scenes in {info['seconds']:.0f} s "
-        f"(final loss {info['final_loss']:.3f}, chance {info['chance_loss']:.3f}); wrote {args.out}"
+        f"(final loss {info['final_loss']:.3f}, chance {info['chance_loss']:.3f})"
     )
+    report: dict = {"checkpoint": str(args.out), "training": {k: v for k, v in info.items() if k != "trust"}}
+    if held:
+        ev = evaluate(model, held, train_s, seed=args.seed, progress=not args.quiet)
+        model.info["validation"] = report["validation"] = ev.to_dict()
+        print(f"\nleave-one-object-out on {len(held)} held-out scenes (seed {args.seed}):\n{ev.table()}")
+        if args.val_data is None:
+            held_file = args.out.with_name(args.out.stem + ".val.jsonl")
+            write_jsonl(held_file, held)
+            report["held_out_file"] = str(held_file)
+            print(
+                f"held-out scenes -> {held_file}; `scenescore evaluate {args.out} {held_file} --train-data "
+                f"{args.data} --seed {args.seed}` prints the same figures"
+            )
+        if args.plot is not None:
+            training_figure(info["history"], info["chance_loss"], ev.examples, args.plot)
+            print(f"wrote {args.plot}")
+    elif args.plot is not None:
+        training_figure(info["history"], info["chance_loss"], [], args.plot)
+        print(f"wrote {args.plot}")
+    model.save(args.out)
+    report_path = args.report or args.out.with_name("train_report.json")
+    atomic_write_text(report_path, json.dumps(report, indent=1) + "\n")
+    print(f"wrote {args.out} and {report_path}")
     return 0

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import cast
 
 from . import add_common
 
@@ -51,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         cfg.iterations = args.iterations
     placer = SceneScorePlacer(train_config=cfg, progress=not args.quiet)
     placer.fit(train, seed=args.seed)
+    assert placer.model is not None
     placer.model.save(out / "model.ckpt")
     info = placer.model.info
     print(
@@ -77,7 +79,12 @@ def run(args: argparse.Namespace) -> int:
     )
     shown = [(c, p) for c, p in zip(cases, pred)][:: max(1, len(cases) // 6)][:6]
     demo_figure(shown, out / "demo.png")
-    errs = np.array([100 * np.hypot(*(np.array(p[c.name].pose[:2]) - c.truth[:2])) for c, p in shown])
+    errs = np.array(
+        [
+            100 * np.hypot(*(np.array(cast(tuple[float, float, float], p[c.name].pose)[:2]) - c.truth[:2]))
+            for c, p in shown
+        ]
+    )
     print(
         f"\n4. wrote {out}/demo.png: {len(shown)} test scenes, placed object outlined in red, truth dashed "
         f"(errors {', '.join(f'{e:.1f}' for e in errs)} cm)"

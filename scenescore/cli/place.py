@@ -27,6 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
     from dataclasses import replace
 
     from ..models import load
@@ -42,9 +43,19 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{args.scene}: no object has `pose: null`; nothing to place")
     cfg = PLACE if args.particles is None else replace(PLACE, particles=args.particles)
     filled = place(model, scene, cfg, seed=args.seed)
+    trust = filled.meta.get("placement", {})
     for n in names:
-        x, y, t = filled[n].pose
-        print(f"{n:20s} x={x:+.3f} m  y={y:+.3f} m  theta={t:+.3f} rad")
+        pose = filled[n].pose
+        assert pose is not None
+        x, y, t = pose
+        conf = trust.get(n, {}).get("confidence")
+        print(
+            f"{n:20s} x={x:+.3f} m  y={y:+.3f} m  theta={t:+.3f} rad"
+            + ("" if conf is None else f"  confidence {conf:.2f}")
+        )
+    for n in names:
+        for flag in trust.get(n, {}).get("flags", []):
+            print(f"warning: {n}: {flag}", file=sys.stderr)
     if args.out:
         filled.to_json(args.out)
         print(f"wrote {args.out}")

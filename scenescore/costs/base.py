@@ -20,7 +20,7 @@ import copy
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 import torch
@@ -124,6 +124,11 @@ class Cost:
     def check(self, poses: np.ndarray, tol: float) -> list[Violation]:
         """The exact check of one pose set ``(N, 3)``: what this term violates by more than ``tol``."""
         return []
+
+    def assess(self, poses: np.ndarray) -> dict[str, Any]:
+        """How far to trust the moving objects' poses ``(N, 3)`` by this term: ``name -> Assessment``
+        (only the learned energy has an opinion)."""
+        return {}
 
     # -- binding ------------------------------------------------------------------------------------
     def bind(self, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Cost:
@@ -278,6 +283,7 @@ class Sum(Cost):
     """A flat weighted sum of named terms; ``terms(poses)`` gives each term's breakdown."""
 
     name = "total"
+    items: list[tuple[float, Cost]]
 
     def __init__(self, terms: list[tuple[float, Cost]]):
         flat: list[tuple[float, Cost]] = []
@@ -359,7 +365,7 @@ class Sum(Cost):
         return out
 
     def violation(self, poses: Tensor) -> Tensor | None:
-        vs = [c.violation(poses) for _, c in self.items if c.is_constraint]
+        vs = cast(list[Tensor], [c.violation(poses) for _, c in self.items if c.is_constraint])
         if not vs:
             return None
         return torch.stack(vs, dim=-1).max(-1).values

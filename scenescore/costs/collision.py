@@ -137,7 +137,11 @@ def _collision_casadi(term: HingeCollision, weight: float, nlp: SymbolicProblem)
         rows = [nx * px + ny * py + ra + term.margin / 2 - b for px, py in va]  # i on the negative side
         rows += [b - (nx * px + ny * py) + rb + term.margin / 2 for px, py in vb]  # j on the positive side
         nlp.add_rows(rows, -ca.inf, 0.0)
-        nlp.add_variables(ca.vertcat(phi, b), lambda x0, i=i, j=j: _line_between(x0, i, j))
+
+        def start(x0: np.ndarray, i: int = i, j: int = j) -> np.ndarray:
+            return _line_between(x0, i, j)
+
+        nlp.add_variables(ca.vertcat(phi, b), start)
 
 
 def _line_between(x0: np.ndarray, i: int, j: int) -> np.ndarray:

@@ -6,11 +6,13 @@ from collections.abc import Callable, Sequence
 from typing import Literal
 
 import casadi as ca
+import numpy as np
 import torch
 from torch import Tensor
 
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
+from ..models.trust import Assessment, assess
 from ..scene import Scene
 from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
@@ -74,9 +76,21 @@ class LearnedEnergy(Cost):
         nodes, mask = nodes.repeat_interleave(reps, dim=0), st.mask.repeat_interleave(reps, dim=0)
 
         def fn(poses: Tensor) -> Tensor:
-            return model.net(poses.to(model.dtype), None, None, mask, nodes=nodes).to(poses.dtype)  # type: ignore[arg-type]
+            return model.net(poses.to(model.dtype), None, None, mask, nodes=nodes).to(poses.dtype)
 
         return fn
+
+    def assess(self, poses: np.ndarray) -> dict[str, Assessment]:
+        """Confidence and flags of the moving objects the energy sees, against the model's trust reference."""
+        ref = self.model.trust
+        if ref is None or self.visible_scene is None:
+            return {}
+        vis = self.visible
+        moving = [self.binding.scene.names[i] for i in vis if self.binding.movable[i]]
+        if not moving:
+            return {}
+        scene = self.visible_scene.with_poses(np.asarray(poses)[vis])
+        return assess(ref, self.model, scene, moving)
 
     def evaluate(self, poses: Tensor) -> Tensor:
         dtype = self.model.dtype

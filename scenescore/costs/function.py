@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import cast
 
 from torch import Tensor
 
@@ -18,7 +19,7 @@ class CostFn(Cost):
         if not callable(fn):
             raise CostError(f"CostFn: expected a callable poses -> (B,), got {type(fn).__name__}")
         self.fn = fn
-        self.name = name or getattr(fn, "__name__", "fn")
+        self.name = name or cast(str, getattr(fn, "__name__", "fn"))
 
     def evaluate(self, poses: Tensor) -> Tensor:
         out = self.fn(poses)

@@ -12,7 +12,7 @@ Built-in costs register exact symbolic forms next to their class; a user extends
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import casadi as ca
@@ -87,7 +87,9 @@ class SymbolicProblem:
     def add_objective(self, expr: Any) -> None:
         self.objective = self.objective + expr
 
-    def add_rows(self, rows: Any, lb: float | np.ndarray, ub: float | np.ndarray) -> None:
+    def add_rows(
+        self, rows: Any, lb: float | Sequence[float] | np.ndarray, ub: float | Sequence[float] | np.ndarray
+    ) -> None:
         """Constraint rows ``lb <= rows <= ub`` (``rows``: an expression, column, or list of scalars)."""
         col = ca.vertcat(*rows) if isinstance(rows, list) else rows
         m = int(col.shape[0])

@@ -16,13 +16,31 @@ __all__ = ["FootprintEncoder"]
 class FootprintEncoder:
     """What a top-down image shows of an object, read from its footprint: shape, size and colour.
 
-    Works for any category, seen or not: two objects that look alike get nearby vectors.
+    Works for any category, seen or not: two objects that look alike get nearby vectors. Sizes are
+    read in units of ``length_scale`` (training sets it to the data's), so scaling a dataset leaves
+    its vectors unchanged.
     Layout: shape one-hot (box, disk, polygon) | log length, log width, aspect, area |
     colour RGB | hue (cos, sin) weighted by saturation.
     """
 
     name = "footprint"
     dim = 12
+
+    def __init__(self, length_scale: float | None = None):
+        if length_scale is not None and not (isinstance(length_scale, (int, float)) and length_scale > 0):
+            raise ValueError(
+                f"FootprintEncoder: length_scale: expected a length > 0 in metres, got {length_scale!r}"
+            )
+        self.length_scale = None if length_scale is None else float(length_scale)
+
+    @property
+    def unit(self) -> float:
+        """Sizes are read in this unit (metres): the data's length scale, or 0.1 m when none was set."""
+        return 0.1 if self.length_scale is None else self.length_scale
+
+    def scaled(self, length_scale: float) -> FootprintEncoder:
+        """This encoder reading sizes in units of ``length_scale`` (training sets the data's), unless set."""
+        return self if self.length_scale is not None else FootprintEncoder(length_scale)
 
     def encode(self, obj: SceneObject) -> np.ndarray:
         length, width = obj.size
@@ -40,10 +58,10 @@ class FootprintEncoder:
         h, s, v = colorsys.rgb_to_hsv(r, g, b)
         vec = [
             *map(float, onehot),
-            math.log(length / 0.1),
-            math.log(width / 0.1),
+            math.log(length / self.unit),
+            math.log(width / self.unit),
             min(length, width) / max(length, width),
-            area / 0.01,
+            area / self.unit**2,
             r,
             g,
             b,
@@ -53,4 +71,4 @@ class FootprintEncoder:
         return np.asarray(vec, dtype=np.float32)
 
     def config(self) -> dict[str, Any]:
-        return {}
+        return {} if self.length_scale is None else {"length_scale": self.length_scale}

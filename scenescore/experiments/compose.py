@@ -154,6 +154,7 @@ def run(
                 for m in ss_methods:
                     res.seconds[m] += t_lan
                 if "SceneScore" in chosen:
+                    assert r.samples is not None
                     c, d = _correct(scenario, scene, r.samples)
                     got["SceneScore"] += c
                     dis["SceneScore"] += d
@@ -162,6 +163,7 @@ def run(
                         continue
                     solver = get(stage)
                     t0 = time.perf_counter()
+                    assert r.samples is not None
                     for j in range(min(k_refine, len(r.samples))):
                         x = torch.as_tensor(r.samples[j], dtype=torch.float32)
                         rr = solver.solve(prob, init=x, seed=j)

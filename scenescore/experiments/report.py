@@ -54,9 +54,13 @@ class SeedResults:
         return rows
 
 
-def _fmt(v: float | None, digits: int = 2) -> str:
+def _fmt(v: float | str | None, digits: int = 2) -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return "-"
+    if isinstance(v, str):
+        return v
+    if isinstance(v, int) and not isinstance(v, bool):
+        return str(v)
     return f"{v:.{digits}f}"
 
 

@@ -45,14 +45,11 @@ def energy_mx(model, scene, poses):
         for i, j in pairs:
             dx, dy = x[i] - x[j], y[i] - y[j]
             c, s = ca.cos(th[j]), ca.sin(th[j])
-            cols.append(
-                ca.vertcat(
-                    (c * dx + s * dy) / ls,
-                    (-s * dx + c * dy) / ls,
-                    ca.cos(th[i] - th[j]),
-                    ca.sin(th[i] - th[j]),
-                )
-            )
+            ux, uy = (c * dx + s * dy) / ls, (-s * dx + c * dy) / ls
+            if cfg.edge_range is not None:
+                f = 1 / ca.sqrt(1 + (ux * ux + uy * uy) / cfg.edge_range**2)
+                ux, uy = ux * f, uy * f
+            cols.append(ca.vertcat(ux, uy, ca.cos(th[i] - th[j]), ca.sin(th[i] - th[j])))
         e = ca.horzcat(*cols)  # (4, P)
     for k in range(cfg.layers):
         pre = f"layers.{k}."

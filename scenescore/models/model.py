@@ -15,6 +15,7 @@ from ..scene import Scene
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from .network import EnergyConfig, EnergyNet
+from .trust import TrustReference
 
 __all__ = ["ScoreModel", "load"]
 
@@ -32,6 +33,12 @@ class ScoreModel(nn.Module):
     def create(cls, encoder: Encoder, **config: Any) -> ScoreModel:
         """A freshly initialised model for ``encoder`` (``config``: :class:`EnergyConfig` fields)."""
         return cls(EnergyNet(EnergyConfig(feat_dim=encoder.dim, **config)), encoder)
+
+    @property
+    def trust(self) -> TrustReference | None:
+        """What placements are judged against (stored by training), or None for older checkpoints."""
+        d = self.info.get("trust")
+        return TrustReference.from_dict(d) if isinstance(d, dict) else None
 
     @property
     def config(self) -> EnergyConfig:
@@ -65,7 +72,7 @@ class ScoreModel(nn.Module):
         def fn(poses: Tensor) -> Tensor:
             b = poses.shape[0]
             mask = st.mask.expand(b, -1)
-            return self.net(poses, None, None, mask, nodes=nodes)  # type: ignore[arg-type]
+            return self.net(poses, None, None, mask, nodes=nodes)
 
         return fn
 

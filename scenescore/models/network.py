@@ -33,7 +33,10 @@ class EnergyConfig:
     message: Literal["mlp", "linear"] = "mlp"  # "linear": the paper's single linear layer
     activation: Activation = "silu"  # the paper's is "leaky_relu"; smooth helps second-order solvers
     absolute: bool = False  # the "Abs" ablation: absolute poses in the nodes, no edge features
-    length_scale: float = 0.1  # metres that map to one unit inside the network
+    length_scale: float = 0.1  # metres that map to one unit inside the network (training derives it)
+    # offsets (in length scales) beyond which edge positions saturate smoothly: u / sqrt(1 + |u|^2 / R^2);
+    # None: linear (checkpoints before it). Training derives it from the data's largest offset.
+    edge_range: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -50,8 +53,10 @@ def make_activation(name: str) -> nn.Module:
     raise ValueError(f"unknown activation {name!r}; expected 'silu', 'softplus' or 'leaky_relu'")
 
 
-def edge_features(poses: Tensor, length_scale: float) -> Tensor:
-    """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``."""
+def edge_features(poses: Tensor, length_scale: float, edge_range: float | None = None) -> Tensor:
+    """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``; positions in length scales,
+    saturating beyond ``edge_range`` of them (the network never extrapolates to offsets far beyond the
+    data's: they all look alike, as far)."""
     p = poses[..., :2]  # (B, N, 2)
     th = poses[..., 2]  # (B, N)
     d = p[:, :, None, :] - p[:, None, :, :]  # (B, N_i, N_j, 2): p_i - p_j
@@ -59,7 +64,11 @@ def edge_features(poses: Tensor, length_scale: float) -> Tensor:
     rx = c * d[..., 0] + s * d[..., 1]
     ry = -s * d[..., 0] + c * d[..., 1]
     dth = th[:, :, None] - th[:, None, :]
-    return torch.stack([rx / length_scale, ry / length_scale, torch.cos(dth), torch.sin(dth)], dim=-1)
+    ux, uy = rx / length_scale, ry / length_scale
+    if edge_range is not None:
+        f = torch.rsqrt(1 + (ux * ux + uy * uy) / edge_range**2)
+        ux, uy = ux * f, uy * f
+    return torch.stack([ux, uy, torch.cos(dth), torch.sin(dth)], dim=-1)
 
 
 class _MessageLayer(nn.Module):
@@ -134,7 +143,7 @@ class EnergyNet(nn.Module):
             v = torch.cat([v, absf], dim=-1)
             e = None
         else:
-            e = edge_features(poses, self.cfg.length_scale)
+            e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range)
         for layer in self.layers:
             v = layer(v, e, pair)
         pooled = (v * maskf[..., None]).sum(dim=1)  # global add pooling

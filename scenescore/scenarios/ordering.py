@@ -15,7 +15,9 @@ Lengths come from two disjoint grids: training scenes draw from ``TRAIN_LENGTHS`
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -90,6 +92,7 @@ class OrderingScenario:
     def order(self, items: list[tuple[str, str, float]]) -> list[str]:
         """Names of ``(name, category, length)`` in the rule's order."""
         classes = sorted({c for _, c, _ in items}, key=lambda c: list(CUTLERY).index(c))
+        key: Callable[[tuple[str, str, float]], tuple[Any, ...]]
         if self.rule == "all_size":
             key = lambda it: (-it[2], it[0])  # noqa: E731
         else:
@@ -109,14 +112,14 @@ class OrderingScenario:
             for j, length in enumerate(lengths):
                 items.append((f"{cat}_{j}", cat, float(length)))
         objects = [SceneObject("board", "board", BOARD[0], (ox, oy, math.pi / 2), color=BOARD[1], fixed=True)]
-        lengths = {nm: ln for nm, _, ln in items}
+        length_of = {nm: ln for nm, _, ln in items}
         cats = {nm: c for nm, c, _ in items}
         for k, nm in enumerate(self.order(items)):
             x, y, th = self.slot((ox, oy), k)
             dx, dy = rng.normal(0, self.pos_noise, 2)
             width, color = CUTLERY[cats[nm]]
             pose = (float(x + dx), float(y + dy), float(th + rng.normal(0, self.angle_noise)))
-            objects.append(SceneObject(nm, cats[nm], (lengths[nm], width), pose, color=color))
+            objects.append(SceneObject(nm, cats[nm], (length_of[nm], width), pose, color=color))
         meta = {"scenario": self.name, "rule": self.rule, "test": test}
         return Scene(objects, self.bounds, meta=meta)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -115,7 +116,7 @@ class TVScenario:
             return False
         c, s = math.cos(tv[2]), math.sin(tv[2])
         along, across = [], []
-        for p in sp:
+        for p in cast(list[tuple[float, float, float]], sp):
             dx, dy = p[0] - tv[0], p[1] - tv[1]
             along.append(c * dx + s * dy)
             across.append(-s * dx + c * dy)

@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, cast
 
 import numpy as np
 
@@ -135,7 +135,8 @@ def _geom(o: SceneObject):
     from shapely.geometry import Point, Polygon
 
     if _is_disk(o):
-        return Point(o.pose[0], o.pose[1]), o.size[0] / 2
+        pose = cast(Pose, o.pose)
+        return Point(pose[0], pose[1]), o.size[0] / 2
     return Polygon(o.world_polygon()), 0.0
 
 
@@ -194,7 +195,7 @@ def _pose(scene: Scene, name: str, target: str) -> Pose:
         ) from None
     if p is None:
         raise SceneError(f"oracle: {target!r} needs {name!r}'s pose, which is null")
-    return p  # type: ignore[return-value]
+    return p
 
 
 def _of(scene: Scene, category: str, but: str | None = None) -> list[SceneObject]:
@@ -331,7 +332,11 @@ class PcbScenario(_Zoo):
             a = chip[2] + k * math.pi / 2
             score.append(
                 sum(
-                    w * (math.cos(a) * (o.pose[0] - chip[0]) + math.sin(a) * (o.pose[1] - chip[1]))
+                    w
+                    * (
+                        math.cos(a) * (cast(Pose, o.pose)[0] - chip[0])
+                        + math.sin(a) * (cast(Pose, o.pose)[1] - chip[1])
+                    )
                     for o, w in votes
                 )
             )
@@ -341,6 +346,7 @@ class PcbScenario(_Zoo):
         """The free slot of the row (resistor) or the spot opposite the row (capacitor)."""
         obj = _target(scene, name, self.missing, self.name)
         chip = _one_of(scene, "chip", name).pose
+        assert chip is not None
         side = self._side(scene, chip, name)
         if obj.category == "capacitor":
             return self._cap(chip, side)
@@ -423,7 +429,7 @@ class JarGridScenario(_Zoo):
         if len(others) < 3:
             raise SceneError(f"oracle: {name!r} needs at least three other jars to find the grid")
         p = obj.size[0] * (1 + self.spacing)
-        pts = np.array([o.pose[:2] for o in others])
+        pts = np.array([cast(Pose, o.pose)[:2] for o in others])
         cx, cy = self._clusters(pts[:, 0], p / 2), self._clusters(pts[:, 1], p / 2)
         if len(cx) * len(cy) != n:
             raise SceneError(f"oracle: {name!r}: the other jars do not form a grid of {n} cells")
@@ -490,12 +496,14 @@ class BedroomScenario(_Zoo):
     def _nightstand(self, bed: SceneObject, side: float, width: float) -> Pose:
         length, w = bed.size
         u = -length / 2 + self.nightstand_depth / 2
+        assert bed.pose is not None
         return _compose(bed.pose, u, side * (w / 2 + self.bed_gap + width / 2))
 
     def _lamp(self, stand: Pose, side: float, width: float, diameter: float) -> Pose:
         return _compose(stand, 0.0, side * (width / 2 + self.lamp_gap + diameter / 2))
 
     def _bench(self, bed: SceneObject, depth: float) -> Pose:
+        assert bed.pose is not None
         return _compose(bed.pose, bed.size[0] / 2 + self.bench_gap + depth / 2, 0.0)
 
     def _one(self, rng):
@@ -533,6 +541,7 @@ class BedroomScenario(_Zoo):
         bench: at the bed's foot."""
         obj = _target(scene, name, self.missing, self.name)
         bed = _one_of(scene, "bed", name)
+        assert bed.pose is not None
         k = name.rpartition("_")[2]
         if obj.category == "bench":
             return self._bench(bed, obj.size[0])
@@ -610,10 +619,14 @@ class BanquetScenario(_Zoo):
         """The table's empty seat."""
         _target(scene, name, self.missing, self.name)
         table = _one_of(scene, "table", name).pose
+        assert table is not None
         others = _of(scene, "chair", but=name)
         n = sum(o.category == "chair" for o in scene.objects)
         L = self.table[0]
-        ends = any(abs(_local(table, o.pose[0], o.pose[1])[0]) > L / 2 + self.clearance for o in others)
+        ends = any(
+            abs(_local(table, cast(Pose, o.pose)[0], cast(Pose, o.pose)[1])[0]) > L / 2 + self.clearance
+            for o in others
+        )
         m2 = n - 2 * ends
         if m2 < 2 or m2 % 2:
             raise SceneError(f"oracle: {name!r}: {n} chairs do not fit the table's seating")
@@ -685,10 +698,11 @@ class WorkstationScenario(_Zoo):
         obj = _target(scene, name, self.missing, self.name)
         if obj.category == "keyboard":
             mon = _one_of(scene, "monitor", name).pose
+            assert mon is not None
             depths = []
             for cat, back in (("mouse", 0.0), ("mug", self.mug_offset[1])):
                 for o in _of(scene, cat, but=name):
-                    depths.append(_local(mon, o.pose[0], o.pose[1])[1] - back)
+                    depths.append(_local(mon, cast(Pose, o.pose)[0], cast(Pose, o.pose)[1])[1] - back)
             if not depths:
                 raise SceneError(f"oracle: {name!r} needs the mouse or the mug to find its depth")
             return _compose(mon, 0.0, float(np.mean(depths)))
@@ -696,7 +710,7 @@ class WorkstationScenario(_Zoo):
         partner = _of(scene, "mug" if obj.category == "mouse" else "mouse", but=name)
         if not partner:
             raise SceneError(f"oracle: {name!r} needs the {'mug' if obj.category == 'mouse' else 'mouse'}")
-        u = _local(kb, partner[0].pose[0], partner[0].pose[1])[0]
+        u = _local(kb, cast(Pose, partner[0].pose)[0], cast(Pose, partner[0].pose)[1])[0]
         if obj.category == "mouse":
             hand = -math.copysign(1.0, u)
             return _compose(kb, hand * self.mouse_offset, 0.0, math.pi / 2)
@@ -771,6 +785,7 @@ class GardenScenario(_Zoo):
         """From the masked pot's neighbours in size order, with the gap ratio the other gaps show."""
         _target(scene, name, self.missing, self.name)
         bench = _one_of(scene, "bench", name).pose
+        assert bench is not None
         row = self._order([o for o in scene.objects if o.category == "pot"])
         i = [o.name for o in row].index(name)
         d = [o.size[0] for o in row]
@@ -784,8 +799,9 @@ class GardenScenario(_Zoo):
             num += known[0] - start - d[0] / 2
             den += d[0]
         for j in range(len(row) - 1):
-            if known[j] is not None and known[j + 1] is not None:
-                num += known[j + 1] - known[j] - (d[j] + d[j + 1]) / 2
+            left, right = known[j], known[j + 1]
+            if left is not None and right is not None:
+                num += right - left - (d[j] + d[j + 1]) / 2
                 den += (d[j] + d[j + 1]) / 2
         if den == 0:
             raise SceneError(f"oracle: {name!r} needs two neighbouring pots to see the gaps")
@@ -794,9 +810,9 @@ class GardenScenario(_Zoo):
         if i == 0:
             est.append(start + k * d[0] + d[0] / 2)
         elif known[i - 1] is not None:
-            est.append(known[i - 1] + (1 + k) * (d[i - 1] + d[i]) / 2)
+            est.append(cast(float, known[i - 1]) + (1 + k) * (d[i - 1] + d[i]) / 2)
         if i + 1 < len(row) and known[i + 1] is not None:
-            est.append(known[i + 1] - (1 + k) * (d[i] + d[i + 1]) / 2)
+            est.append(cast(float, known[i + 1]) - (1 + k) * (d[i] + d[i + 1]) / 2)
         if not est:
             raise SceneError(f"oracle: {name!r} needs a neighbouring pot")
         x, y, _ = _compose(bench, float(np.mean(est)), 0.0)
@@ -971,10 +987,11 @@ class BookshelfScenario(_Zoo):
         """The masked book's place in the depth order, counted from the bookend."""
         _target(scene, name, self.missing, self.name)
         end = _one_of(scene, "bookend", name).pose
+        assert end is not None
         others = _of(scene, "book", but=name)
         if not others:
             raise SceneError(f"oracle: {name!r} needs another book to see which way the row runs")
-        direction = math.copysign(1.0, float(np.mean([o.pose[0] for o in others])) - end[0])
+        direction = math.copysign(1.0, float(np.mean([cast(Pose, o.pose)[0] for o in others])) - end[0])
         return self._places(end, direction, [o for o in scene.objects if o.category == "book"])[name]
 
 
@@ -1039,6 +1056,7 @@ class LoungeScenario(_Zoo):
         """Coffee table: in front of the sofa; side table: at the sofa's end away from the wall's centre."""
         obj = _target(scene, name, self.missing, self.name)
         sofa = _one_of(scene, "sofa", name).pose
+        assert sofa is not None
         return self._coffee(sofa) if obj.category == "coffee_table" else self._side(sofa)
 
 

@@ -18,7 +18,8 @@ __all__ = ["Solver", "StageSolver", "start_poses", "torch_threads"]
 class Solver(Protocol):
     """One protocol for every solver: ``solve(problem, init=None, seed=0) -> Result``."""
 
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result: ...
 

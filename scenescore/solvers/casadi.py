@@ -55,7 +55,7 @@ class _Built:
         self.var_obj = nlp.var_obj
         self.nz = nlp.nz
         self.lbg, self.ubg = np.array(nlp.lbg, dtype=float), np.array(nlp.ubg, dtype=float)
-        ipopt = {
+        ipopt: dict[str, int | float | str] = {
             "print_level": 0,
             "max_iter": opts.max_iter,
             "tol": opts.tol,

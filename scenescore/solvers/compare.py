@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from ..problem import Problem
+from .base import Solver
 from .registry import get
 from .result import Result
 
@@ -80,7 +81,7 @@ def compare(
     seed_list = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
     n_part = particles or int(options.get("langevin", {}).get("particles", 64))
     runs: dict[str, list[Result | str]] = {s: [] for s in solvers}
-    built = {}
+    built: dict[str, Solver | str] = {}
     for s in solvers:
         try:
             stages = [t.strip() for t in s.split(">")]

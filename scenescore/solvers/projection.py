@@ -45,7 +45,7 @@ class LinearisedProjection:
         )
         self.var_obj = np.flatnonzero(problem.movable_mask)  # objects that are variables
         self.n = 3 * len(self.var_obj)
-        self._solver = None
+        self._solver: osqp.OSQP | None = None
         self.qp_solves = 0
 
     def _setup(self, support: list[tuple[int, ...]]) -> None:
@@ -86,6 +86,7 @@ class LinearisedProjection:
         g, jac, support = _rows(self.problem, self.terms, x)
         if self._solver is None:
             self._setup(support)
+        assert self._solver is not None
         out = x.clone()
         bad = (g < 0).any(dim=1)
         for b in torch.nonzero(bad).flatten().tolist():

@@ -7,11 +7,12 @@ import math
 import os
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
 
+from ..models.trust import Assessment
 from ..problem import FEASIBILITY_TOL, Problem
 from ..scene import Scene, atomic_write_text
 
@@ -58,6 +59,12 @@ class Result:
     threads: int = 1  # torch threads the solve ran on
     qp_time_mean: float | None = None  # seconds per QP, for solvers that solve QPs
     wall_time: float | None = None  # seconds from ss.solve's call to its return (set by ss.solve)
+    confidence: dict[str, Assessment] = field(default_factory=dict)  # moving objects, by the learned energy
+
+    @property
+    def warnings(self) -> list[str]:
+        """One line per flagged object and reason: the placements not to trust blindly."""
+        return [f"{name}: {flag}" for name, a in self.confidence.items() for flag in a.flags]
 
     @property
     def time_total(self) -> float:
@@ -87,6 +94,9 @@ class Result:
             lines.append(
                 f"{k:<{w}}  {t['value']:>12.6g}  {t['weight']:>8.3g}  {t['weighted']:>12.6g}  {v:>10}"
             )
+        for name, a in self.confidence.items():
+            lines.append(f"{name}: confidence {a.confidence:.2f}" + ("" if a.flags else " (in distribution)"))
+        lines += [f"warning: {w}" for w in self.warnings]
         if self.stages:
             lines.append(
                 "stages: "
@@ -115,6 +125,7 @@ class Result:
             "terms": {k: {kk: _num(vv) for kk, vv in t.items()} for k, t in self.terms.items()},
             "poses": {n: [float(v) for v in p] for n, p in zip(names, self.poses)},
             "stages": [s.to_dict() for s in self.stages],
+            "confidence": {n: a.to_dict() for n, a in self.confidence.items()},
         }
 
     def to_json(self, path: str | os.PathLike | None = None) -> str:
@@ -159,13 +170,15 @@ def make_result(
         }
         for k, t in tv.items()
     }
-    objective = float(sum(t["weighted"] for t in terms.values()))
+    objective = float(sum(cast(float, t["weighted"]) for t in terms.values()))
     max_v, violated = 0.0, None
     for c in problem.cost.constraint_terms:
         w = c.worst(x[0])
         if w is not None and w[1] > max_v:
             max_v, violated = w[1], f"{c.name}: {w[0]}"
     feas = problem.check(x[0], tol)
+    pose_np = np.asarray(x[0].detach(), dtype=float)
+    confidence = {k: v for _, c in problem.cost for k, v in c.assess(pose_np).items()}
     success = status.ok and max_v <= tol and math.isfinite(objective)
     if max_v > tol:
         message = (
@@ -191,4 +204,5 @@ def make_result(
         sample_costs=None if sample_costs is None else np.asarray(sample_costs, dtype=float),
         problem=problem,
         threads=threads,
+        confidence=confidence,
     )

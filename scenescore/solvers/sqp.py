@@ -113,13 +113,14 @@ class OSQPSolver(StageSolver):
         # the QP over [d (n), s (m)]: min 1/2 d'Hd + q'd + elastic * sum(s)  s.t.  J d + s >= slack - g,
         # -trust <= d <= trust, s >= 0. Sparsity is fixed; values are updated each iteration.
         col = {int(ob): k for k, ob in enumerate(mdl.var_obj)}
-        jr, jc = [], []
+        jr_list: list[int] = []
+        jc_list: list[int] = []
         for r, objs in enumerate(mdl.support):
             for ob in objs:
                 if ob in col:
-                    jr += [r] * 3
-                    jc += [3 * col[ob] + a for a in range(3)]
-        jr, jc = np.array(jr, dtype=int), np.array(jc, dtype=int)
+                    jr_list += [r] * 3
+                    jc_list += [3 * col[ob] + a for a in range(3)]
+        jr, jc = np.array(jr_list, dtype=int), np.array(jc_list, dtype=int)
         rows = np.concatenate([jr, np.arange(m), m + np.arange(n), m + n + np.arange(m)])
         cols = np.concatenate([jc, n + np.arange(m), np.arange(n), n + np.arange(m)])
         a_order = np.lexsort((rows, cols))
@@ -220,8 +221,8 @@ class OSQPSolver(StageSolver):
         if status == Status.MAX_ITERATIONS:
             msg = f"stopped after {o.max_iter} iterations"
         x = mdl.poses(z, base)[0]
-        r = make_result(problem, self.name, x, status, it, t1 - t0, t2 - t1, message=msg)
-        if r.status == Status.CONVERGED and not r.success:
-            r.status = Status.INFEASIBLE
-        r.qp_time_mean = float(np.mean(qp_times)) if qp_times else 0.0
-        return r
+        result = make_result(problem, self.name, x, status, it, t1 - t0, t2 - t1, message=msg)
+        if result.status == Status.CONVERGED and not result.success:
+            result.status = Status.INFEASIBLE
+        result.qp_time_mean = float(np.mean(qp_times)) if qp_times else 0.0
+        return result

@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -93,6 +93,7 @@ def scene_and_poses_from_image(
         encoder = ImageEncoder(ppm=ppm)
     detector = detector or ClassicalDetector()
     dets = as_detections(detector.detect(image), (h, w))
+    objects: list[SceneObject]
     objects, symmetry, details = [], {}, []
     for det in dets:
         if det.mask.sum() / ppm**2 < min_area or det.mask.sum() < 3:
@@ -100,7 +101,7 @@ def scene_and_poses_from_image(
         pose = pose_from_mask(det.mask, ppm, bounds)
         crop = rectify_crop(image, det.mask, pose, ppm, bounds)
         name = f"obj_{len(objects)}"
-        color = tuple(int(v) for v in np.median(image[det.mask], axis=0))
+        color = cast(tuple[int, int, int], tuple(int(v) for v in np.median(image[det.mask], axis=0)))
         obj = SceneObject(
             name=name,
             category=det.category or "unknown",
@@ -108,7 +109,7 @@ def scene_and_poses_from_image(
             pose=pose.pose,
             color=color,
             shape="disk" if pose.symmetric else "box",
-        )  # type: ignore[arg-type]
+        )
         obj.features = [float(v) for v in _encode(encoder, crop, obj)]
         objects.append(obj)
         symmetry[name] = pose.symmetry

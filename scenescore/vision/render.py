@@ -14,6 +14,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -144,11 +145,11 @@ def render_object(
     alone = SceneObject(
         obj.name,
         obj.category,
-        tuple(obj.size),
+        cast(tuple[float, float], tuple(obj.size)),
         (center[0], center[1], theta),
-        tuple(obj.color),
+        cast(tuple[int, int, int], tuple(obj.color)),
         shape=obj.shape,
-    )  # type: ignore[arg-type]
+    )
     image, masks = render_scene(Scene([alone], bounds), ppm, background)
     return image, masks[0], bounds
 

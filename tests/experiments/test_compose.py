@@ -1,10 +1,12 @@
 """Experiment 3 (Fig. 4): rows, figures, the PNG and the CLI's report.md."""
 
+import pytest
 import torch
 
 from scenescore.experiments import compose
 
 
+@pytest.mark.slow
 def test_compose_quick_rows_and_plot(tmp_path):
     torch.set_num_threads(1)
     res = compose.run(seeds=1, quick=True, progress=False, levels=[0, 1], samples=8, refine=1)

@@ -1,0 +1,185 @@
+"""How far to trust a placement: its energy against the examples', and checks a person would make.
+
+Training stores a :class:`TrustReference` in the checkpoint: the per-object energies ``E / N`` of
+reference scenes (held-out ones when there are any, else the training scenes), and what the data's
+geometry looks like in its own length scale (how far each category lies from its nearest neighbour,
+which categories ever touch the bounds, which feature vectors occur). :func:`assess` gives every placed
+object a confidence (the fraction of reference energies at or above the placed scene's) and flags it,
+with the reason, when
+
+- the placed scene's energy lies beyond the reference's (``energy``),
+- the object is farther from every other object than any object of its category in the data (``far``),
+- it is pinned at a bound that no object of its category touches in the data (``bound``),
+- its category's features are far from every feature seen in training (``novel``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..geometry import footprint_core
+from ..scene import Scene, SceneObject
+
+__all__ = ["TrustReference", "Assessment", "reference", "assess"]
+
+BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
+FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
+MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
+
+
+@dataclass
+class TrustReference:
+    """The data a placement is judged against (stored in a checkpoint's ``info["trust"]``)."""
+
+    energies: list[float]  # per-object energies E / N of the reference scenes, sorted
+    length_scale: float
+    nearest: dict[str, float]  # category -> largest nearest-neighbour distance in the data (length scales)
+    nearest_any: float
+    touches_bounds: list[str]  # categories with an object touching the bounds in the data
+    features: list[list[float]] = field(default_factory=list)  # distinct feature vectors seen in training
+    feature_radius: float = 1.0  # an object farther than this from every training feature is novel
+
+    @property
+    def energy_limit(self) -> float:
+        """Energies above this lie beyond the reference: its largest plus half its interquartile range."""
+        e = np.asarray(self.energies)
+        q25, q75 = np.percentile(e, [25, 75])
+        return float(e.max() + 0.5 * (q75 - q25))
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TrustReference:
+        return cls(**d)
+
+
+@dataclass
+class Assessment:
+    """One placed object's confidence in [0, 1] and the reasons it is flagged (none: in distribution)."""
+
+    confidence: float
+    flags: list[str] = field(default_factory=list)
+
+    @property
+    def flagged(self) -> bool:
+        return bool(self.flags)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"confidence": round(self.confidence, 4), "flags": list(self.flags)}
+
+
+def _nearest(poses: np.ndarray) -> np.ndarray:
+    """Each centre's distance to the nearest other centre ``(N,)`` (inf for a lone object)."""
+    d = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return d.min(axis=1)
+
+
+def _touches(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
+    """The bound the placed footprint touches (``"x >= -0.6"``), or None."""
+    core, r = footprint_core(obj)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    pts = core @ np.array([[c, s], [-s, c]]) + np.asarray(pose[:2])
+    lo, hi = pts.min(0) - r, pts.max(0) + r
+    (x0, y0), (x1, y1) = bounds
+    for v, b, name in ((lo[0], x0, f"x >= {x0:g}"), (lo[1], y0, f"y >= {y0:g}")):
+        if v <= b + tol:
+            return name
+    for v, b, name in ((hi[0], x1, f"x <= {x1:g}"), (hi[1], y1, f"y <= {y1:g}")):
+        if v >= b - tol:
+            return name
+    return None
+
+
+def _energies(model: Any, scenes: Sequence[Scene]) -> list[float]:
+    with torch.no_grad():
+        st = model.tensors(scenes)
+        e = model.energy(st.poses, st)
+    return [float(v) / len(s) for v, s in zip(e, scenes)]
+
+
+def reference(model: Any, train: Sequence[Scene], held_out: Sequence[Scene] = ()) -> TrustReference:
+    """The trust reference of a trained model: energies of ``held_out`` (else ``train``), geometry and
+    features of everything it saw."""
+    scenes = list(train) + list(held_out)
+    length = float(model.config.length_scale)
+    nearest: dict[str, float] = {}
+    touching: set[str] = set()
+    for s in scenes:
+        p = s.poses()
+        nn = _nearest(p) / length
+        for o, d, pose in zip(s.objects, nn, p):
+            if math.isfinite(d):
+                nearest[o.category] = max(nearest.get(o.category, 0.0), float(d))
+            if _touches(o, pose, s.bounds, BOUND_TOL * length):
+                touching.add(o.category)
+    with torch.no_grad():
+        feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().numpy()
+    uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
+    if len(uniq) > 1:
+        d = np.linalg.norm(uniq[:, None] - uniq[None], axis=-1)
+        np.fill_diagonal(d, np.inf)
+        radius = max(1.0, 3.0 * float(np.median(d.min(axis=1))))
+    else:
+        radius = 1.0
+    return TrustReference(
+        energies=sorted(_energies(model, held_out or train)),
+        length_scale=length,
+        nearest=nearest,
+        nearest_any=max(nearest.values(), default=0.0),
+        touches_bounds=sorted(touching),
+        features=uniq.tolist(),
+        feature_radius=radius,
+    )
+
+
+def assess(
+    ref: TrustReference, model: Any, scene: Scene, names: Sequence[str], feats: torch.Tensor | None = None
+) -> dict[str, Assessment]:
+    """Confidence and flags for the objects ``names`` of ``scene`` (every pose known).
+
+    ``feats``: the scene's encoded features ``(N, F)`` when the caller has them (saves encoding again).
+    """
+    e = _energies(model, [scene])[0]
+    ref_e = np.asarray(ref.energies)
+    confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
+    beyond = e > ref.energy_limit if ref_e.size else False
+    p = scene.poses()
+    nn = _nearest(p) / ref.length_scale
+    if feats is None:
+        with torch.no_grad():
+            feats = model.tensors([scene]).feats[0]
+    known = np.asarray(ref.features)
+    out = {}
+    for name in names:
+        i = scene.index(name)
+        o = scene.objects[i]
+        flags = []
+        if beyond:
+            flags.append(
+                f"energy: the scene's energy {e:.3g} per object lies beyond every example's ({ref.energy_limit:.3g})"
+            )
+        far = ref.nearest.get(o.category, ref.nearest_any)
+        if math.isfinite(nn[i]) and far > 0 and nn[i] > FAR_FACTOR * far:
+            d, lim = nn[i] * ref.length_scale, far * ref.length_scale
+            flags.append(
+                f"far: {d:.3g} m from its nearest neighbour; no {o.category} in the data is more than {lim:.3g} m away"
+            )
+        side = _touches(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
+        if side and o.category not in ref.touches_bounds:
+            flags.append(f"bound: pinned at the bound {side}, which no {o.category} in the data touches")
+        if known.size:
+            dist = float(np.linalg.norm(known - feats[i].double().numpy(), axis=1).min())
+            if dist > ref.feature_radius:
+                flags.append(
+                    f"novel: its features are {dist:.2f} from any object seen in training (limit {ref.feature_radius:.2f})"
+                )
+        out[name] = Assessment(confidence, flags)
+    return out
