@@ -98,6 +98,7 @@ def run_generate(args: argparse.Namespace) -> int:
 
 def run_train(args: argparse.Namespace) -> int:
     import json
+    import sys
 
     from ..encoders import make_encoder
     from ..evaluation import evaluate
@@ -128,6 +129,13 @@ def run_train(args: argparse.Namespace) -> int:
         if not args.val_data.exists():
             raise UserError(f"--val-data {args.val_data}: no such file")
         train_s, held = scenes, read_jsonl(args.val_data)
+    elif args.val > 0 and len(scenes) < 6:
+        print(
+            f"warning: {len(scenes)} scenes are too few to hold out 4 for validation and train on 2; "
+            "training on all of them without validation (give held-out scenes with --val-data)",
+            file=sys.stderr,
+        )
+        train_s, held = scenes, []
     else:
         train_s, held = split_validation(scenes, args.val, seed=args.seed)
     model = train(train_s, cfg, encoder=encoder, seed=args.seed, progress=not args.quiet, validation=held)

@@ -136,9 +136,10 @@ def test_target_without_heading_leaves_the_heading_free():
     assert r.poses[0, 2] == pytest.approx(0.5, abs=1e-4)
 
 
-@pytest.mark.skipif(torch.get_num_threads() < 2, reason="needs a torch thread pool of at least 2")
 def test_langevin_uses_every_thread_for_large_populations_through_solve():
     """Bug 2: ``ss.solve`` entered a one-thread block before the solver chose its threads."""
+    outer = torch.get_num_threads()
+    torch.set_num_threads(2)  # other test modules pin one thread; this one needs a pool
     before = torch.get_num_threads()
     p = ss.Problem(_scene(), _cost(), movable=["a", "b"])
     big = ss.solve(p, "langevin", options={"langevin": {"particles": 256, "steps": 2, "final_descent": 0}})
@@ -148,6 +149,7 @@ def test_langevin_uses_every_thread_for_large_populations_through_solve():
     pinned = ss.solve(p, "langevin", options={"langevin": {"particles": 256, "steps": 2, "threads": 1}})
     assert pinned.threads == 1
     assert torch.get_num_threads() == before  # nothing leaks into the process
+    torch.set_num_threads(outer)
 
 
 def test_result_fields_are_declared_and_status_serialises():
