@@ -285,7 +285,7 @@ def train(
             round(sum(history[i : i + 10]) / len(history[i : i + 10]), 4) for i in range(0, len(history), 10)
         ],
     }
-    model.info["trust"] = reference(model, scenes, validation).to_dict()
+    model.info["trust"] = reference(model, scenes, validation, cfg.feature_noise).to_dict()
     return model
 
 

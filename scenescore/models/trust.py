@@ -105,9 +105,13 @@ def _energies(model: Any, scenes: Sequence[Scene]) -> list[float]:
     return [float(v) / len(s) for v, s in zip(e, scenes)]
 
 
-def reference(model: Any, train: Sequence[Scene], held_out: Sequence[Scene] = ()) -> TrustReference:
+def reference(
+    model: Any, train: Sequence[Scene], held_out: Sequence[Scene] = (), feature_noise: float = 0.0
+) -> TrustReference:
     """The trust reference of a trained model: energies of ``held_out`` (else ``train``), geometry and
-    features of everything it saw."""
+    features of everything it saw. ``feature_noise``: the std of the noise training added to every
+    feature; the network has seen features that far from the data's (about ``std * sqrt(dim)``), and
+    an object is novel 1.5 times farther than that (at least 1)."""
     scenes = list(train) + list(held_out)
     length = float(model.config.length_scale)
     nearest: dict[str, float] = {}
@@ -123,12 +127,7 @@ def reference(model: Any, train: Sequence[Scene], held_out: Sequence[Scene] = ()
     with torch.no_grad():
         feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().numpy()
     uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
-    if len(uniq) > 1:
-        d = np.linalg.norm(uniq[:, None] - uniq[None], axis=-1)
-        np.fill_diagonal(d, np.inf)
-        radius = max(1.0, 3.0 * float(np.median(d.min(axis=1))))
-    else:
-        radius = 1.0
+    radius = max(1.0, 1.5 * feature_noise * math.sqrt(feats.shape[1]))
     return TrustReference(
         energies=sorted(_energies(model, held_out or train)),
         length_scale=length,

@@ -1,0 +1,81 @@
+"""Trust in placements: the reference training stores, and the flags that name the object and why."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+import scenescore as ss
+from scenescore.models.trust import TrustReference, assess
+from scenescore.placement import PLACE, place
+from scenescore.training import TrainConfig, train
+
+SMALL = replace(PLACE, particles=16, candidates=256, chain=replace(PLACE.chain, steps=20, final_descent=10))
+
+
+@pytest.fixture(scope="module")
+def dining():
+    torch.set_num_threads(1)
+    sc = ss.scenarios.get("dining")
+    tr, te = sc.generate(12, 3), sc.generate(4, 4)
+    cfg = TrainConfig(iterations=40, batch_scenes=6, negatives=6, model={"hidden": 16, "layers": 2})
+    return train(tr, cfg, seed=0, progress=False, validation=te), tr, te
+
+
+def test_training_stores_the_reference(dining):
+    model, tr, te = dining
+    ref = model.trust
+    assert isinstance(ref, TrustReference)
+    assert len(ref.energies) == len(te) and ref.energies == sorted(ref.energies)
+    assert set(ref.nearest) == {"plate", "fork", "knife", "bowl"}
+    assert ref.touches_bounds == []  # no dining object touches the table's square bounds
+    assert ref.length_scale == model.config.length_scale
+
+
+def test_examples_are_in_distribution(dining):
+    model, _, te = dining
+    for s in te:
+        a = assess(model.trust, model, s, s.names)
+        assert all(not v.flags for v in a.values()), {n: v.flags for n, v in a.items() if v.flags}
+
+
+def test_a_placement_forced_far_away_in_larger_bounds_is_flagged(dining):
+    """A model trained on a 1.2 m table asked to place in bounds 10x larger, the bowl pulled to a corner."""
+    model, _, te = dining
+    big = te[0].without("bowl_0")
+    big.bounds = ((-6.0, -6.0), (6.0, 6.0))
+    cost = ss.costs.LearnedEnergy(model) + 100.0 * ss.costs.PoseTarget("bowl_0", (6.0, 6.0))
+    r = ss.solve(
+        ss.Problem(big, cost), "langevin", seed=0, options={"langevin": {"particles": 8, "steps": 20}}
+    )
+    a = r.confidence["bowl_0"]
+    assert any(f.startswith("far:") for f in a.flags), a.flags
+    assert any(f.startswith("bound:") for f in a.flags), a.flags
+    assert any("bowl_0: far:" in w for w in r.warnings)
+    assert "warning: bowl_0" in r.summary()
+    assert r.to_dict()["confidence"]["bowl_0"]["flags"] == a.flags
+
+
+def test_an_object_far_from_the_training_categories_is_flagged(dining):
+    model, _, te = dining
+    s = te[1]
+    odd = ss.SceneObject("thing", "anvil", (0.5, 0.4), None, color=(255, 0, 255), shape="box")
+    q = ss.Scene([*s.objects, odd], s.bounds)
+    out = place(model, q, SMALL, seed=0)
+    flags = out.meta["placement"]["thing"]["flags"]
+    assert any(f.startswith("novel:") for f in flags), flags
+    assert 0.0 <= out.meta["placement"]["thing"]["confidence"] <= 1.0
+
+
+def test_energy_beyond_the_reference_is_flagged(dining):
+    model, _, te = dining
+    ref = model.trust
+    low = TrustReference(**{**ref.to_dict(), "energies": [e - 1e3 for e in ref.energies]})
+    a = assess(low, model, te[0], ["fork_0"])
+    assert a["fork_0"].confidence == 0.0 and any(f.startswith("energy:") for f in a["fork_0"].flags)
+    # a reference that round-trips through a checkpoint's JSON is the same reference
+    assert TrustReference.from_dict(ref.to_dict()) == ref
+    assert np.isfinite(ref.energy_limit)
