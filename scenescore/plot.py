@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
@@ -88,7 +88,19 @@ def plot_scene(
     save_figure(fig, path)
 
 
-def demo_figure(cases, path: str | os.PathLike) -> None:
+def _error_cm(case: Any, pred: Scene) -> float:
+    """How far ``pred`` placed the case's object from its true position, in cm."""
+    pose = pred[case.name].pose
+    if pose is None:
+        raise ValueError(f"{case.name!r} was not placed")
+    return 100 * float(np.hypot(pose[0] - case.truth[0], pose[1] - case.truth[1]))
+
+
+def demo_figure(
+    cases: Sequence[tuple[Any, Scene]],
+    path: str | os.PathLike,
+    title: str = "SceneScore: missing objects placed by Langevin on the learned energy (truth dashed)",
+) -> None:
     """A grid of placed scenes: each ``(case, predicted scene)`` with the true pose dashed."""
     import matplotlib
 
@@ -104,10 +116,8 @@ def demo_figure(cases, path: str | os.PathLike) -> None:
     for ax, (case, pred) in zip(axes.flat, cases):
         truth = pred.with_poses([case.truth], [case.name])
         draw_scene(ax, pred, highlight=[case.name], ghosts=truth)
-        x, y, _ = pred[case.name].pose
-        err = 100 * float(np.hypot(x - case.truth[0], y - case.truth[1]))
-        ax.set_title(f"{case.name}: error {err:.1f} cm", fontsize=9)
-    fig.suptitle("SceneScore: missing objects placed by Langevin on the learned energy (truth dashed)")
+        ax.set_title(f"{case.name}: error {_error_cm(case, pred):.1f} cm", fontsize=9)
+    fig.suptitle(title)
     save_figure(fig, path)
 
 
@@ -170,8 +180,7 @@ def training_figure(
     for ax, (case, pred) in zip(axes[0, 1:], shown):
         truth = pred.with_poses([case.truth], [case.name])
         draw_scene(ax, pred, highlight=[case.name], ghosts=truth)
-        x, y, _ = cast(tuple[float, float, float], pred[case.name].pose)
-        err = 100 * float(np.hypot(x - case.truth[0], y - case.truth[1]))
+        err = _error_cm(case, pred)
         flags = pred.meta.get("placement", {}).get(case.name, {}).get("flags")
         ax.set_title(f"held out: {case.name}, {err:.1f} cm off" + (" (flagged)" if flags else ""), fontsize=9)
     fig.tight_layout()

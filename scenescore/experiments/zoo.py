@@ -55,6 +55,13 @@ class ZooResult:
     per_case: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # scenario -> cases (all seeds)
     info: dict[str, dict[str, Any]] = field(default_factory=dict)  # scenario -> scale and counts
     seconds: dict[str, float] = field(default_factory=dict)
+    worst: dict[str, tuple[MissingCase, Scene, float]] = field(
+        default_factory=dict
+    )  # scenario -> worst placement
+
+    def worst_examples(self) -> list[tuple[MissingCase, Scene]]:
+        """Each scenario's worst placement ``(case, placed scene)``, worst first."""
+        return [(c, p) for c, p, _ in sorted(self.worst.values(), key=lambda w: -w[2])]
 
     def rows(self) -> list[Row]:
         out = []
@@ -138,6 +145,8 @@ def run(
                 sym = c.category in sc.symmetric
                 t, r = _errors(c, pose, sym)
                 ot, orr = _errors(c, sc.oracle(c.scene, c.name), sym)
+                if name not in res.worst or t > res.worst[name][2]:
+                    res.worst[name] = (c, p, t)
                 res.per_case[name].append(
                     {
                         "seed": seed,
