@@ -36,6 +36,7 @@ __all__ = [
     "data_scale",
     "heldout_loss",
     "split_validation",
+    "stands_against_walls",
 ]
 
 
@@ -73,6 +74,8 @@ class TrainConfig:
     length_scale: float | None = None
     edge_range: float | None = None
     saturate_edges: bool = True  # derive edge_range (False: linear edge positions, as before)
+    # the bounds' sides as fixed objects in every graph; None: when the data stands against them
+    walls: bool | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):
@@ -112,6 +115,23 @@ def data_scale(scenes: Sequence[Scene]) -> tuple[float, float]:
         if len(p) > 1:
             far = max(far, float(np.sqrt(((p[:, None] - p[None]) ** 2).sum(-1)).max()))
     return float(length), max(far / length, 1.0)
+
+
+def stands_against_walls(scenes: Sequence[Scene], gap: float = 0.02, share: float = 0.9) -> bool:
+    """Whether the data places objects against its bounds: in at least ``share`` of the scenes some
+    footprint lies within ``gap`` of the bounds' larger side from a bound (a sofa against the wall, a
+    bookend at the shelf's end). Relations to the room then need the walls in the graph."""
+    near = 0
+    for s in scenes:
+        (x0, y0), (x1, y1) = s.bounds
+        tol = gap * max(x1 - x0, y1 - y0)
+        for o in s.objects:
+            pts = o.world_polygon()
+            lo, hi = pts.min(0), pts.max(0)
+            if lo[0] <= x0 + tol or lo[1] <= y0 + tol or hi[0] >= x1 - tol or hi[1] >= y1 - tol:
+                near += 1
+                break
+    return near >= share * len(scenes)
 
 
 def perturbed_negatives(
@@ -207,7 +227,10 @@ def train(
     encoder = encoder or FootprintEncoder()
     if isinstance(encoder, FootprintEncoder):
         encoder = encoder.scaled(length)  # sizes in the data's unit
-    model = ScoreModel.create(encoder, **{**cfg.model, "length_scale": length, "edge_range": reach})
+    walls = cfg.walls if cfg.walls is not None else cfg.model.get("walls", stands_against_walls(scenes))
+    model = ScoreModel.create(
+        encoder, **{**cfg.model, "length_scale": length, "edge_range": reach, "walls": bool(walls)}
+    )
     data = model.tensors(scenes)
     s_count = len(scenes)
     buf = _ChainBuffer(data, cfg.negatives, cfg, gen)

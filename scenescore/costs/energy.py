@@ -12,6 +12,7 @@ from torch import Tensor
 
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
+from ..models.model import with_walls
 from ..models.trust import Assessment, assess
 from ..scene import Scene
 from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
@@ -73,10 +74,12 @@ class LearnedEnergy(Cost):
             st = model.tensors([t.binding.scene for t in es])
             nodes = model.net.node_embedding(st.feats, st.sizes)  # (G, N, D)
         reps = torch.as_tensor(list(sizes))
-        nodes, mask = nodes.repeat_interleave(reps, dim=0), st.mask.repeat_interleave(reps, dim=0)
+        st = st.repeat(1).index(torch.arange(len(es)).repeat_interleave(reps))  # one row per particle
+        nodes = nodes.repeat_interleave(reps, dim=0)
 
         def fn(poses: Tensor) -> Tensor:
-            return model.net(poses.to(model.dtype), None, None, mask, nodes=nodes).to(poses.dtype)
+            x = with_walls(poses.to(model.dtype), st)
+            return model.net(x, None, None, st.mask, nodes=nodes).to(poses.dtype)
 
         return fn
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -9,9 +10,9 @@ import torch
 from torch import Tensor
 
 from ..encoders import Encoder, encode_scene
-from ..scene import Scene, SceneError
+from ..scene import Bounds, Scene, SceneError, SceneObject
 
-__all__ = ["SceneTensors", "batch_scenes"]
+__all__ = ["SceneTensors", "batch_scenes", "wall_objects"]
 
 
 @dataclass
@@ -42,12 +43,38 @@ class SceneTensors:
         )
 
 
+WALL_COLOR = (200, 200, 200)
+WALL_THICKNESS = 0.02  # of the bounds' larger side
+
+
+def wall_objects(bounds: Bounds) -> list[SceneObject]:
+    """The four sides of the bounds as thin fixed boxes just outside them, each heading so that its own
+    ``+y`` points into the room (south, north, west, east). They scale with the bounds."""
+    (x0, y0), (x1, y1) = bounds
+    w, h = x1 - x0, y1 - y0
+    t = WALL_THICKNESS * max(w, h)
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    sides = [
+        ("s", (cx, y0 - t / 2, 0.0), w + 2 * t),
+        ("n", (cx, y1 + t / 2, math.pi), w + 2 * t),
+        ("w", (x0 - t / 2, cy, -math.pi / 2), h + 2 * t),
+        ("e", (x1 + t / 2, cy, math.pi / 2), h + 2 * t),
+    ]
+    return [
+        SceneObject(f"wall_{k}", "wall", (length, t), pose, color=WALL_COLOR, fixed=True)
+        for k, pose, length in sides
+    ]
+
+
 def batch_scenes(
-    scenes: Sequence[Scene], encoder: Encoder, dtype: torch.dtype = torch.float32
+    scenes: Sequence[Scene], encoder: Encoder, dtype: torch.dtype = torch.float32, walls: bool = False
 ) -> SceneTensors:
-    """Encode and pad scenes of possibly different sizes into one batch."""
+    """Encode and pad scenes of possibly different sizes into one batch; ``walls`` appends the bounds'
+    four sides to every scene as fixed objects (after its own objects, which keep their indices)."""
     if not scenes:
         raise SceneError("batch_scenes: no scenes given")
+    if walls:
+        scenes = [Scene([*s.objects, *wall_objects(s.bounds)], s.bounds) for s in scenes]
     b, n = len(scenes), max(len(s) for s in scenes)
     out = SceneTensors(
         poses=torch.zeros(b, n, 3, dtype=dtype),

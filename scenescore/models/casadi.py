@@ -27,7 +27,10 @@ def energy_mx(model, scene, poses):
     with torch.no_grad():
         nodes = net.node_embedding(st.feats, st.sizes)[0].double().numpy().T  # (D, N)
     sd = {k: v.detach().double().numpy() for k, v in net.state_dict().items()}
-    n = len(scene)
+    walls = st.poses[0, len(scene) :].double().numpy()  # the objects the model adds (walls): constants
+    if len(walls):
+        poses = ca.vertcat(poses, ca.DM(walls))
+    n = len(scene) + len(walls)
     ls = cfg.length_scale
     x, y, th = poses[:, 0], poses[:, 1], poses[:, 2]
     pairs = [(i, j) for i in range(n) for j in range(n) if i != j]

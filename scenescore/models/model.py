@@ -17,7 +17,7 @@ from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from .network import EnergyConfig, EnergyNet
 from .trust import TrustReference
 
-__all__ = ["ScoreModel", "load"]
+__all__ = ["ScoreModel", "load", "with_walls"]
 
 
 class ScoreModel(nn.Module):
@@ -46,7 +46,7 @@ class ScoreModel(nn.Module):
 
     def tensors(self, scenes: Sequence[Scene]) -> SceneTensors:
         """Encode scenes with this model's encoder."""
-        return batch_scenes(scenes, self.encoder, dtype=self.dtype)
+        return batch_scenes(scenes, self.encoder, dtype=self.dtype, walls=self.config.walls)
 
     @property
     def dtype(self) -> torch.dtype:
@@ -72,7 +72,7 @@ class ScoreModel(nn.Module):
         def fn(poses: Tensor) -> Tensor:
             b = poses.shape[0]
             mask = st.mask.expand(b, -1)
-            return self.net(poses, None, None, mask, nodes=nodes)
+            return self.net(with_walls(poses, st), None, None, mask, nodes=nodes)
 
         return fn
 
@@ -85,6 +85,16 @@ class ScoreModel(nn.Module):
             {"name": self.encoder.name, "config": self.encoder.config()},
             self.info,
         )
+
+
+def with_walls(poses: Tensor, st: SceneTensors) -> Tensor:
+    """``poses (B, N, 3)`` of a scene's own objects, followed by the poses of the objects ``st`` adds to
+    it (the walls of a model that sees them): ``(B, N + W, 3)``."""
+    n, total = poses.shape[1], st.poses.shape[1]
+    if n == total:
+        return poses
+    extra = st.poses[:, n:].to(poses.dtype)
+    return torch.cat([poses, extra.expand(poses.shape[0], -1, -1)], dim=1)
 
 
 def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:

@@ -37,6 +37,7 @@ class EnergyConfig:
     # offsets (in length scales) beyond which edge positions saturate smoothly: u / sqrt(1 + |u|^2 / R^2);
     # None: linear (checkpoints before it). Training derives it from the data's largest offset.
     edge_range: float | None = None
+    walls: bool = False  # the bounds' four sides are fixed objects in every graph (training decides)
 
     def to_dict(self) -> dict:
         return asdict(self)

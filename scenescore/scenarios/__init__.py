@@ -17,6 +17,7 @@ from .zoo import (
     BookshelfScenario,
     CascadeScenario,
     GardenScenario,
+    HallScenario,
     JarGridScenario,
     LoungeScenario,
     PcbScenario,
@@ -42,6 +43,7 @@ __all__ = [
     "CascadeScenario",
     "BookshelfScenario",
     "LoungeScenario",
+    "HallScenario",
 ]
 
 
@@ -71,6 +73,7 @@ _REGISTRY: dict[str, Callable[..., Any]] = {
     "zoo-cascade": CascadeScenario,
     "zoo-books": BookshelfScenario,
     "zoo-lounge": LoungeScenario,
+    "zoo-hall": HallScenario,
 }
 
 

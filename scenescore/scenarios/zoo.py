@@ -22,6 +22,7 @@ variable count, symmetric footprints and relations that depend on the objects' s
 ``zoo-cascade``           crate -> case -> tin -> matchbox, each beside the last, turning one way
 ``zoo-books``             4-24 books sorted by depth from a fixed bookend, backs flush to the wall
 ``zoo-lounge``            fixed 2 m sofa in a 4.4 m room; coffee table, side table at one end
+``zoo-hall``              fixed 2 m console anywhere in a 4.4 m hall; vases at its ends, a stool
 ========================  ====================================================================
 
 Poses carry clipped Gaussian noise (about 1-3 % of the relation's length scale). Scenes are drawn
@@ -51,6 +52,7 @@ __all__ = [
     "CascadeScenario",
     "BookshelfScenario",
     "LoungeScenario",
+    "HallScenario",
     "footprint_extent",
     "footprints_overlap",
 ]
@@ -1060,6 +1062,71 @@ class LoungeScenario(_Zoo):
         return self._coffee(sofa) if obj.category == "coffee_table" else self._side(sofa)
 
 
+# -- 10. a hall ----------------------------------------------------------------------------------------
+@dataclass
+class HallScenario(_Zoo):
+    """A fixed 2 m console table anywhere in a 4.4 m hall, at any angle; a vase on the floor in front of
+    each of its ends and a stool in front of its middle, farther out. Small objects by one big fixed one
+    in large bounds, every relation rigid to the console (nothing depends on the walls).
+    """
+
+    _stream: ClassVar[int] = 211
+    name: str = "zoo-hall"
+    half: tuple[float, float] = (2.2, 2.2)
+    console: tuple[float, float] = (2.0, 0.4)
+    vase: float = 0.12
+    stool: float = 0.34
+    vase_at: tuple[float, float] = (0.7, 0.22)  # from the console's centre: along it, in front of its front
+    stool_out: float = 0.45  # stool centre in front of the console's front
+    pos_noise: float = 0.015
+    angle_noise: float = math.radians(3.0)
+    n_train: int = 48
+    n_test: int = 16
+    missing: tuple[str, ...] = ("vase", "stool")
+    symmetric: tuple[str, ...] = ("vase", "stool")
+
+    @property
+    def counts(self) -> tuple[int, int]:
+        return (4, 4)
+
+    def _slot(self, console: Pose, cat: str, k: int) -> Pose:
+        front = self.console[1] / 2
+        if cat == "stool":
+            return _compose(console, 0.0, front + self.stool_out)
+        u, v = self.vase_at
+        return _compose(console, (-u, u)[k], front + v)
+
+    def _one(self, rng):
+        H = self.half[0]
+        console = (
+            float(rng.uniform(-H, H)),
+            float(rng.uniform(-H, H)),
+            float(rng.uniform(-math.pi, math.pi)),
+        )
+        objs = [_obj("console", 0, self.console, console, (110, 80, 55), fixed=True)]
+        for k in range(2):
+            x, y, _ = _jitter(rng, self._slot(console, "vase", k), self.pos_noise, 0.0)
+            objs.append(
+                _obj("vase", k, (self.vase, self.vase), (x, y, _spin(rng)), (70, 130, 160), shape="disk")
+            )
+        x, y, t = _jitter(rng, self._slot(console, "stool", 0), self.pos_noise, self.angle_noise)
+        turn = int(rng.integers(4)) * math.pi / 2  # a square stool: a quarter turn looks the same
+        objs.append(
+            _obj("stool", 0, (self.stool, self.stool), (x, y, float(wrap_angle(t + turn))), (150, 120, 90))
+        )
+        return objs, {}
+
+    def oracle(self, scene: Scene, name: str) -> Pose:
+        """Stool: in front of the console's middle; vase: in front of the end the other vase leaves free."""
+        obj = _target(scene, name, self.missing, self.name)
+        console = _one_of(scene, "console", name).pose
+        assert console is not None
+        if obj.category == "stool":
+            return self._slot(console, "stool", 0)
+        slots = [self._slot(console, "vase", k) for k in range(2)]
+        return _free_slot(slots, _of(scene, "vase", but=name))
+
+
 ZOO: tuple[str, ...] = (
     "zoo-pcb",
     "zoo-jars",
@@ -1070,4 +1137,5 @@ ZOO: tuple[str, ...] = (
     "zoo-cascade",
     "zoo-books",
     "zoo-lounge",
+    "zoo-hall",
 )

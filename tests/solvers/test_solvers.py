@@ -96,10 +96,10 @@ def test_casadi_mx_rebuild_matches_torch_energy():
     from scenescore.models.casadi import energy_mx
 
     torch.manual_seed(0)
-    for act in ("silu", "softplus", "leaky_relu"):
-        model = ss.models.ScoreModel.create(
-            ss.FootprintEncoder(), hidden=16, layers=2, activation=act
-        ).double()
+    configs = [{"activation": a} for a in ("silu", "softplus", "leaky_relu")]
+    configs.append({"edge_range": 3.0, "walls": True, "length_scale": 0.07})  # saturating edges, walls
+    for extra in configs:
+        model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=16, layers=2, **extra).double()
         scene = ss.scenarios.get("dining").generate(1, 0)[0]
         x = np.random.default_rng(0).uniform(-0.5, 0.5, (len(scene), 3))
         e_torch = float(model.energy_fn(scene)(torch.tensor(x)[None]).detach())
