@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..evaluation import MissingCase, angle_error_deg
+from ..models.trust import BOUND_TOL, touching_bound
 from ..placement import PLACE, place_many
 from ..scenarios import get
 from ..scenarios.zoo import ZOO
@@ -102,19 +103,6 @@ def _errors(
     return t, None if symmetric else angle_error_deg(pose[2], case.truth[2])
 
 
-def _at_bound(scene: Scene, pose: tuple[float, float, float], name: str) -> bool:
-    """Whether the placed footprint touches the scene's bounds (within 0.5 % of the bounds' size)."""
-    from ..geometry import footprint_core
-
-    (x0, y0), (x1, y1) = scene.bounds
-    tol = 0.005 * max(x1 - x0, y1 - y0)
-    core, r = footprint_core(scene[name])
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    pts = core @ np.array([[c, s], [-s, c]]) + np.array(pose[:2])
-    lo, hi = pts.min(0) - r, pts.max(0) + r
-    return bool(lo[0] <= x0 + tol or lo[1] <= y0 + tol or hi[0] >= x1 - tol or hi[1] >= y1 - tol)
-
-
 def run(
     seeds: int = 3,
     scenarios: list[str] | None = None,
@@ -136,6 +124,7 @@ def run(
             train_s, test_s = sc.split(seed)
             model = train(train_s, config or TrainConfig(), seed=seed, progress=progress)
             cases = zoo_cases(sc, test_s, seed)
+            tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
             placed = []
             for k in range(0, len(cases), 8):
                 placed += place_many(model, [c.scene for c in cases[k : k + 8]], PLACE, seed + k)
@@ -155,7 +144,7 @@ def run(
                         "R_deg": r,
                         "oracle_t_cm": ot,
                         "oracle_R_deg": orr,
-                        "at_bound": _at_bound(c.scene, pose, c.name),
+                        "at_bound": touching_bound(c.scene[c.name], pose, c.scene.bounds, tol) is not None,
                         "flagged": bool(p.meta.get("placement", {}).get(c.name, {}).get("flags")),
                         "pose": list(pose),
                         "truth": list(c.truth),

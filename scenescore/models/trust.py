@@ -26,7 +26,7 @@ import torch
 from ..geometry import footprint_core
 from ..scene import Scene, SceneObject
 
-__all__ = ["TrustReference", "Assessment", "reference", "assess"]
+__all__ = ["TrustReference", "Assessment", "reference", "assess", "touching_bound", "BOUND_TOL"]
 
 BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
@@ -82,7 +82,7 @@ def _nearest(poses: np.ndarray) -> np.ndarray:
     return d.min(axis=1)
 
 
-def _touches(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
+def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
     """The bound the placed footprint touches (``"x >= -0.6"``), or None."""
     core, r = footprint_core(obj)
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -122,7 +122,7 @@ def reference(
         for o, d, pose in zip(s.objects, nn, p):
             if math.isfinite(d):
                 nearest[o.category] = max(nearest.get(o.category, 0.0), float(d))
-            if _touches(o, pose, s.bounds, BOUND_TOL * length):
+            if touching_bound(o, pose, s.bounds, BOUND_TOL * length):
                 touching.add(o.category)
     with torch.no_grad():
         feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().numpy()
@@ -171,7 +171,7 @@ def assess(
             flags.append(
                 f"far: {d:.3g} m from its nearest neighbour; no {o.category} in the data is more than {lim:.3g} m away"
             )
-        side = _touches(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
+        side = touching_bound(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
         if side and o.category not in ref.touches_bounds:
             flags.append(f"bound: pinned at the bound {side}, which no {o.category} in the data touches")
         if known.size:
