@@ -47,7 +47,9 @@ def test_data_scale_is_derived_from_the_data():
     l8, f8 = data_scale([s.scaled(8) for s in scenes])
     assert l8 == 8 * length and f8 == far
     model = train(scenes, replace(CFG, iterations=1), seed=0, progress=False)
-    assert model.config.length_scale == length and model.config.edge_range == far
+    assert model.config.length_scale == length and model.config.edge_range is None  # linear by default
+    saturating = train(scenes, replace(CFG, iterations=1, saturate_edges=True), seed=0, progress=False)
+    assert saturating.config.edge_range == far
     pinned = train(
         scenes, replace(CFG, iterations=1, length_scale=0.3, edge_range=4.0), seed=0, progress=False
     )
