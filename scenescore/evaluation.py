@@ -24,6 +24,7 @@ __all__ = [
     "leave_one_out",
     "score_cases",
     "angle_error_deg",
+    "case_errors",
     "OraclePlacer",
     "CategoryErrors",
     "EvalReport",
@@ -108,6 +109,12 @@ def leave_one_out(scenes: Sequence[Scene], objects: Sequence[str] | None = None)
                 continue
             cases.append(MissingCase(s.without(o.name), o.name, o.category, o.pose))
     return cases
+
+
+def case_errors(case: MissingCase, pose: Sequence[float], symmetric: bool) -> tuple[float, float | None]:
+    """A placement's position error (cm) and orientation error (deg; ``None`` when ``symmetric``)."""
+    t = 100 * math.hypot(pose[0] - case.truth[0], pose[1] - case.truth[1])
+    return t, None if symmetric else angle_error_deg(pose[2], case.truth[2])
 
 
 def _round(o: SceneObject) -> bool:
@@ -213,8 +220,7 @@ def evaluate(
         c, pose = cases[k], p[cases[k].name].pose
         if pose is None:
             return math.nan, None
-        t = 100 * math.hypot(pose[0] - c.truth[0], pose[1] - c.truth[1])
-        return t, None if _round(c.scene[c.name]) else angle_error_deg(pose[2], c.truth[2])
+        return case_errors(c, pose, _round(c.scene[c.name]))
 
     for cat, ks in cats.items():
         ours = [errs(k, pred[k]) for k in ks]

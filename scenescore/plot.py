@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from .evaluation import case_errors
 from .scene import Scene, atomic_write_bytes
 
 __all__ = ["plot_scene", "save_figure", "draw_scene", "demo_figure", "draw_heatmap", "training_figure"]
@@ -93,7 +94,7 @@ def _error_cm(case: Any, pred: Scene) -> float:
     pose = pred[case.name].pose
     if pose is None:
         raise ValueError(f"{case.name!r} was not placed")
-    return 100 * float(np.hypot(pose[0] - case.truth[0], pose[1] - case.truth[1]))
+    return case_errors(case, pose, True)[0]
 
 
 def demo_figure(

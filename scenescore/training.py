@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from .encoders import Encoder, FootprintEncoder
 from .models import SceneTensors, ScoreModel
-from .models.trust import reference
+from .models.trust import reference, touching_bound
 from .sampling import TRAINING, LangevinConfig, langevin, uniform_init
 from .scene import Scene, SceneError
 
@@ -127,12 +127,8 @@ def stands_against_walls(scenes: Sequence[Scene], gap: float = 0.02, share: floa
     for s in scenes:
         (x0, y0), (x1, y1) = s.bounds
         tol = gap * max(x1 - x0, y1 - y0)
-        for o in s.objects:
-            pts = o.world_polygon()
-            lo, hi = pts.min(0), pts.max(0)
-            if lo[0] <= x0 + tol or lo[1] <= y0 + tol or hi[0] >= x1 - tol or hi[1] >= y1 - tol:
-                near += 1
-                break
+        if any(o.pose is not None and touching_bound(o, o.pose, s.bounds, tol) for o in s.objects):
+            near += 1
     return near >= share * len(scenes)
 
 

@@ -51,8 +51,8 @@ class PoseTarget(Cost):
     @property
     def index(self) -> int:
         """The bound scene's index of the object this term pulls."""
-        (i,) = check_scene_names(self.binding.scene, [self.obj], f"PoseTarget {self.name!r}: object")
-        return i
+        self.binding  # noqa: B018 - raises a clear error when unbound
+        return self._i
 
 
 def _target_casadi(term: PoseTarget, weight: float, nlp: SymbolicProblem) -> None:

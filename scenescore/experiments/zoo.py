@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..evaluation import MissingCase, angle_error_deg
+from ..evaluation import MissingCase, case_errors
 from ..models.trust import BOUND_TOL, touching_bound
 from ..placement import PLACE, place_many
 from ..scenarios import get
@@ -96,13 +96,6 @@ class ZooResult:
         return sorted(out, key=lambda r: -r.figures["ratio"])
 
 
-def _errors(
-    case: MissingCase, pose: tuple[float, float, float], symmetric: bool
-) -> tuple[float, float | None]:
-    t = 100 * math.hypot(pose[0] - case.truth[0], pose[1] - case.truth[1])
-    return t, None if symmetric else angle_error_deg(pose[2], case.truth[2])
-
-
 def run(
     seeds: int = 3,
     scenarios: list[str] | None = None,
@@ -132,8 +125,8 @@ def run(
                 pose = p[c.name].pose
                 assert pose is not None
                 sym = c.category in sc.symmetric
-                t, r = _errors(c, pose, sym)
-                ot, orr = _errors(c, sc.oracle(c.scene, c.name), sym)
+                t, r = case_errors(c, pose, sym)
+                ot, orr = case_errors(c, sc.oracle(c.scene, c.name), sym)
                 if name not in res.worst or t > res.worst[name][2]:
                     res.worst[name] = (c, p, t)
                 res.per_case[name].append(
