@@ -30,6 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--methods", default=None, help="comma-separated subset of the methods")
     p.add_argument("--scenarios", default=None, help="zoo: comma-separated subset of the zoo's scenarios")
     p.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="zoo: worker processes, one thread each (default 1; up to the number of cores pays)",
+    )
+    p.add_argument(
         "--quick", action="store_true", help="short training, for a smoke test (figures not comparable)"
     )
     p.add_argument(
@@ -48,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise UserError(f"--seeds must be at least 1, got {args.seeds}")
+    if args.jobs < 1:
+        raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     names = EXPERIMENTS if args.name == "all" else [args.name]
     sections: list[str] = []
     for name in names:
@@ -166,7 +174,7 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
     names = args.scenarios.split(",") if args.scenarios else None
     cfg = TrainConfig(iterations=150) if args.quick else TrainConfig()
-    res = zoo.run(seeds=args.seeds, scenarios=names, progress=not args.quiet, config=cfg)
+    res = zoo.run(seeds=args.seeds, scenarios=names, progress=not args.quiet, config=cfg, jobs=args.jobs)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case, indent=1) + "\n")
     demo_figure(

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass
 from typing import Literal
 
 import torch
+import torch.nn.functional as F
 from torch import Tensor, nn
 
 __all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation"]
@@ -85,13 +86,18 @@ class _MessageLayer(nn.Module):
         self.act = act
 
     def forward(self, v: Tensor, e: Tensor | None, pair_mask: Tensor) -> Tensor:
+        # f's last linear is moved out of the sum over j (it is linear): sum_j p_ij (W a_ij + b) =
+        # W (sum_j p_ij a_ij) + b deg_i, so the (B, N, N, H) tensors are the first layer's and its
+        # activation only; the masked sum is a batched matrix product
         m = self.w_i(v)[:, :, None, :] + self.w_j(v)[:, None, :, :]  # (B, N, N, H)
         if self.w_e is not None and e is not None:
             m = m + self.w_e(e)
         if self.out is not None:
-            m = self.out(self.act(m))
-        m = m * pair_mask[..., None]
-        return self.act(m.sum(dim=2))
+            m = self.act(m)
+        s = (m * pair_mask[..., None]).sum(dim=2)  # (B, N, H): sum_j p_ij m_ij
+        if self.out is not None:
+            s = F.linear(s, self.out.weight) + pair_mask.sum(dim=2, keepdim=True) * self.out.bias
+        return self.act(s)
 
 
 class EnergyNet(nn.Module):

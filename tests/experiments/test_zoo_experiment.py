@@ -1,0 +1,38 @@
+"""The zoo experiment at tiny sizes: its table, and worker processes that change nothing."""
+
+import pytest
+
+from scenescore.experiments import zoo
+from scenescore.scene import SceneError
+from scenescore.training import TrainConfig
+
+TINY = TrainConfig(iterations=3, batch_scenes=4, negatives=2)
+
+
+def test_zoo_in_workers_equals_one_process():
+    one = zoo.run(
+        seeds=1, scenarios=["zoo-cascade", "zoo-hall"], progress=False, log=lambda s: None, config=TINY
+    )
+    two = zoo.run(
+        seeds=1,
+        scenarios=["zoo-cascade", "zoo-hall"],
+        progress=False,
+        log=lambda s: None,
+        config=TINY,
+        jobs=2,
+    )
+    assert list(one.per_case) == list(two.per_case) == ["zoo-cascade", "zoo-hall"]
+    for name in one.per_case:
+        assert len(one.per_case[name]) == 16
+        a = [x for c in one.per_case[name] for x in c["pose"]]
+        b = [x for c in two.per_case[name] for x in c["pose"]]
+        assert a == pytest.approx(b, abs=1e-5)
+    md = zoo.format_zoo(two)
+    assert "| zoo-cascade |" in md and "| zoo-hall |" in md and "32 placements" in md
+
+
+def test_zoo_rejects_unknown_scenario_and_bad_jobs():
+    with pytest.raises(SceneError, match="zoo-nope"):
+        zoo.run(seeds=1, scenarios=["zoo-nope"], log=lambda s: None)
+    with pytest.raises(SceneError, match="jobs"):
+        zoo.run(seeds=1, scenarios=["zoo-hall"], log=lambda s: None, jobs=0)
