@@ -2,7 +2,7 @@
 
     python examples/compare_solvers.py [--seeds 3] [--out compare.md]
 
-The same as ``scenescore compare examples/place_bowl.yaml --solvers langevin,langevin>osqp,langevin>casadi``.
+The same as ``scenescore compare examples/place_bowl.yaml --solvers 'langevin,langevin>osqp,langevin>casadi'``.
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from scenescore.cli import UserError
 from scenescore.cli import problems as cli_problems
 from scenescore.problem import ProblemError
 from scenescore.problem_file import load_problem
@@ -159,7 +160,7 @@ def test_inline_scene_and_cli_solve_writes_json_and_plot(folder, capsys):
             "compare",
             str(folder / "p.yaml"),
             "--solvers",
-            "osqp,casadi,nope",
+            "osqp,casadi",
             "--seeds",
             "2",
             "--out",
@@ -169,6 +170,16 @@ def test_inline_scene_and_cli_solve_writes_json_and_plot(folder, capsys):
     )
     assert args.func(args) == 0
     table = (folder / "cmp.md").read_text()
-    assert "| osqp | 100% | 100% |" in table and "| nope | 0% | 0% |" in table  # a failure is a row
+    assert "| osqp | 100% | 100% |" in table
     rows = json.loads((folder / "cmp.json").read_text())["rows"]
-    assert [r["solver"] for r in rows] == ["osqp", "casadi", "nope"] and rows[2]["errors"] == 2
+    assert [r["solver"] for r in rows] == ["osqp", "casadi"]
+    # unknown, empty or repeated names are refused before anything runs
+    for bad, said in (
+        ("osqp,nope", "unknown solver 'nope'"),
+        ("langevin,,osqp", "empty"),
+        ("osqp,osqp", "more than once"),
+        ("langevin>", "empty"),
+    ):
+        args = parser.parse_args(["compare", str(folder / "p.yaml"), "--solvers", bad, "--quiet"])
+        with pytest.raises(UserError, match=said):
+            args.func(args)

@@ -14,7 +14,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "solve", help="solve a YAML problem", description="Solve a YAML problem file and print the result."
     )
     p.add_argument("problem", help="problem.yaml")
-    p.add_argument("--solver", help="a solver or chain, e.g. langevin>osqp (default: the file's)")
+    p.add_argument(
+        "--solver",
+        help="langevin, osqp, casadi, or a chain of them joined by '>' (quote it: 'langevin>osqp'); "
+        "default: the file's",
+    )
     p.add_argument("--out", help="write the result as JSON here")
     p.add_argument("--scene-out", help="write the solved scene as JSON here")
     p.add_argument("--plot", help="draw the solved scene to this PNG")
@@ -28,7 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     c.add_argument("problem", help="problem.yaml")
     c.add_argument(
-        "--solvers", default="langevin,langevin>osqp,langevin>casadi", help="comma-separated solvers/chains"
+        "--solvers",
+        default="langevin,langevin>osqp,langevin>casadi",
+        help="comma-separated solvers (langevin, osqp, casadi) or chains joined by '>'; quote it, '>' is a "
+        "shell redirect (default: 'langevin,langevin>osqp,langevin>casadi')",
     )
     c.add_argument("--seeds", type=int, default=5, help="number of seeds (default 5)")
     c.add_argument("--out", help="write the table here: FILE.md (markdown) and FILE.json (JSON) beside it")
@@ -103,14 +110,35 @@ def _plot(result, path: str) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
+def _solver_list(text: str) -> list[str]:
+    """``--solvers`` as names, each checked against the registry; empty or repeated names refused."""
+    from ..solvers import available, get
+
+    names = [s.strip() for s in text.split(",")]
+    example = "e.g. 'langevin,langevin>osqp'"
+    if any(not n or any(not st.strip() for st in n.split(">")) for n in names):
+        raise UserError(
+            f"--solvers {text!r}: an empty solver name; expected a comma-separated list, {example}"
+        )
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise UserError(f"--solvers {text!r}: {', '.join(repeated)} given more than once")
+    for n in names:
+        try:
+            get(n)
+        except Exception as e:
+            raise UserError(f"--solvers: {e}") from None
+    if not names:
+        raise UserError(f"--solvers: expected a comma-separated list of {', '.join(available())}, {example}")
+    return names
+
+
 def run_compare(args: argparse.Namespace) -> int:
     from ..scene import atomic_write_text
     from ..solvers.compare import compare
 
     lp = _load(args.problem)
-    solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
-    if not solvers:
-        raise UserError("--solvers: expected a comma-separated list of solvers, e.g. langevin,langevin>osqp")
+    solvers = _solver_list(args.solvers)
     if args.seeds < 1:
         raise UserError(f"--seeds: expected a number >= 1, got {args.seeds}")
     cmp = compare(
