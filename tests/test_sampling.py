@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -10,7 +12,7 @@ import scenescore as ss
 from scenescore.costs import CostError, CostFn, LearnedEnergy
 from scenescore.problem import Problem, ProblemError
 from scenescore.problem_file import load_problem
-from scenescore.sampling import LangevinConfig, langevin, resample, screen
+from scenescore.sampling import PLACEMENT, LangevinConfig, langevin, resample, screen
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import solve
 
@@ -138,3 +140,18 @@ def test_yaml_energy_objects_key(tmp_path, model):
     (tmp_path / "p.yaml").write_text(text.format("cup_0"))
     with pytest.raises(ProblemError, match=r"costs\[0\]\.objects\[2\].*no object named 'cup_0'"):
         load_problem(tmp_path / "p.yaml")
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("step_init", 0.0),
+        ("step_final", -1e-3),
+        ("max_delta", float("inf")),
+        ("noise", -1.0),
+        ("power", float("nan")),
+    ],
+)
+def test_langevin_config_refuses_nonsense(field, value):
+    with pytest.raises(ValueError, match=field):
+        replace(PLACEMENT, **{field: value})
