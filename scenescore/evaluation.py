@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .scene import Scene, SceneError, SceneObject
+from .scene import Scene, SceneError
 
 __all__ = [
     "MissingCase",
@@ -117,11 +117,6 @@ def case_errors(case: MissingCase, pose: Sequence[float], symmetric: bool) -> tu
     return t, None if symmetric else angle_error_deg(pose[2], case.truth[2])
 
 
-def _round(o: SceneObject) -> bool:
-    """A round disk: its heading means nothing."""
-    return o.shape_kind == "disk" and abs(o.size[0] - o.size[1]) <= 1e-9 * max(o.size)
-
-
 @dataclass
 class CategoryErrors:
     """Leave-one-object-out errors of one category: SceneScore's and the nearest-neighbour baseline's."""
@@ -220,7 +215,7 @@ def evaluate(
         c, pose = cases[k], p[cases[k].name].pose
         if pose is None:
             return math.nan, None
-        return case_errors(c, pose, _round(c.scene[c.name]))
+        return case_errors(c, pose, c.scene[c.name].round)
 
     for cat, ks in cats.items():
         ours = [errs(k, pred[k]) for k in ks]

@@ -114,6 +114,11 @@ class SceneObject:
         """``box``, ``disk`` or ``polygon``."""
         return self.shape if isinstance(self.shape, str) else "polygon"
 
+    @property
+    def round(self) -> bool:
+        """A round disk: its heading means nothing (the energy ignores it, errors do not count it)."""
+        return self.shape_kind == "disk" and abs(self.size[0] - self.size[1]) <= 1e-9 * max(self.size)
+
     def polygon(self) -> np.ndarray:
         """The footprint's outline in the object's own frame, ``(K, 2)`` counter-clockwise."""
         length, width = self.size

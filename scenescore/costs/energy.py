@@ -79,7 +79,7 @@ class LearnedEnergy(Cost):
 
         def fn(poses: Tensor) -> Tensor:
             x = with_walls(poses.to(model.dtype), st)
-            return model.net(x, None, None, st.mask, nodes=nodes).to(poses.dtype)
+            return model.net(x, None, None, st.mask, nodes=nodes, round=st.round).to(poses.dtype)
 
         return fn
 

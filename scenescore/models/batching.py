@@ -17,7 +17,8 @@ __all__ = ["SceneTensors", "batch_scenes", "wall_objects"]
 
 @dataclass
 class SceneTensors:
-    """Scenes as padded tensors; ``mask`` marks real objects, ``known`` known poses, ``fixed`` fixed ones."""
+    """Scenes as padded tensors; ``mask`` marks real objects, ``known`` known poses, ``fixed`` fixed ones,
+    ``round`` round disks (their headings mean nothing)."""
 
     poses: Tensor  # (B, N, 3), unknown poses are 0
     feats: Tensor  # (B, N, F)
@@ -25,6 +26,7 @@ class SceneTensors:
     mask: Tensor  # (B, N) bool
     known: Tensor  # (B, N) bool
     fixed: Tensor  # (B, N) bool
+    round: Tensor  # (B, N) bool
     lo: Tensor  # (B, 2) lower bounds
     hi: Tensor  # (B, 2) upper bounds
 
@@ -83,6 +85,7 @@ def batch_scenes(
         mask=torch.zeros(b, n, dtype=torch.bool),
         known=torch.zeros(b, n, dtype=torch.bool),
         fixed=torch.zeros(b, n, dtype=torch.bool),
+        round=torch.zeros(b, n, dtype=torch.bool),
         lo=torch.zeros(b, 2, dtype=dtype),
         hi=torch.zeros(b, 2, dtype=dtype),
     )
@@ -94,6 +97,7 @@ def batch_scenes(
         out.mask[k, :m] = True
         out.known[k, :m] = torch.tensor([o.pose is not None for o in s.objects])
         out.fixed[k, :m] = torch.tensor([o.fixed for o in s.objects])
+        out.round[k, :m] = torch.tensor([o.round for o in s.objects])
         out.lo[k] = torch.tensor(s.bounds[0], dtype=dtype)
         out.hi[k] = torch.tensor(s.bounds[1], dtype=dtype)
     return out

@@ -28,6 +28,7 @@ def energy_mx(model, scene, poses):
         nodes = net.node_embedding(st.feats, st.sizes)[0].double().numpy().T  # (D, N)
     sd = {k: v.detach().double().numpy() for k, v in net.state_dict().items()}
     walls = st.poses[0, len(scene) :].double().numpy()  # the objects the model adds (walls): constants
+    rnd = st.round[0].tolist() if cfg.round_invariant else [False] * st.poses.shape[1]
     if len(walls):
         poses = ca.vertcat(poses, ca.DM(walls))
     n = len(scene) + len(walls)
@@ -40,7 +41,8 @@ def energy_mx(model, scene, poses):
         si[i, p] = 1.0
         sj[j, p] = 1.0
     if cfg.absolute:
-        v = ca.vertcat(ca.DM(nodes), (x / ls).T, (y / ls).T, ca.cos(th).T, ca.sin(th).T)
+        keep = ca.DM([[0.0 if r else 1.0 for r in rnd]])  # (1, N): round objects show no heading
+        v = ca.vertcat(ca.DM(nodes), (x / ls).T, (y / ls).T, ca.cos(th).T * keep, ca.sin(th).T * keep)
         e = None
     else:
         v = ca.DM(nodes)
@@ -49,10 +51,15 @@ def energy_mx(model, scene, poses):
             dx, dy = x[i] - x[j], y[i] - y[j]
             c, s = ca.cos(th[j]), ca.sin(th[j])
             ux, uy = (c * dx + s * dy) / ls, (-s * dx + c * dy) / ls
+            cd, sd = ca.cos(th[i] - th[j]), ca.sin(th[i] - th[j])
+            if rnd[j]:  # seen from a round object: the distance alone (see edge_features)
+                ux, uy = ca.sqrt(ux * ux + uy * uy + 1e-12), 0
+            if rnd[i] or rnd[j]:
+                cd, sd = 0, 0
             if cfg.edge_range is not None:
                 f = 1 / ca.sqrt(1 + (ux * ux + uy * uy) / cfg.edge_range**2)
                 ux, uy = ux * f, uy * f
-            cols.append(ca.vertcat(ux, uy, ca.cos(th[i] - th[j]), ca.sin(th[i] - th[j])))
+            cols.append(ca.vertcat(ux, uy, cd, sd))
         e = ca.horzcat(*cols)  # (4, P)
     for k in range(cfg.layers):
         pre = f"layers.{k}."

@@ -55,10 +55,10 @@ class ScoreModel(nn.Module):
     def energy(self, poses: Tensor, st: SceneTensors) -> Tensor:
         """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``."""
         b = poses.shape[0]
-        feats, sizes, mask = st.feats, st.sizes, st.mask
+        feats, sizes, mask, rnd = st.feats, st.sizes, st.mask, st.round
         if feats.shape[0] == 1 and b != 1:
-            feats, sizes, mask = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask))
-        return self.net(poses, feats, sizes, mask)
+            feats, sizes, mask, rnd = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask, rnd))
+        return self.net(poses, feats, sizes, mask, round=rnd)
 
     def energy_fn(self, scene: Scene) -> Callable[[Tensor], Tensor]:
         """``poses (B, N, 3) -> (B,)`` conditioned on one scene's objects (node embeddings computed once)."""
@@ -72,7 +72,7 @@ class ScoreModel(nn.Module):
         def fn(poses: Tensor) -> Tensor:
             b = poses.shape[0]
             mask = st.mask.expand(b, -1)
-            return self.net(with_walls(poses, st), None, None, mask, nodes=nodes)
+            return self.net(with_walls(poses, st), None, None, mask, nodes=nodes, round=st.round)
 
         return fn
 

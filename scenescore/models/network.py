@@ -39,6 +39,9 @@ class EnergyConfig:
     # None: linear (checkpoints before it). Training derives it from the data's largest offset.
     edge_range: float | None = None
     walls: bool = False  # the bounds' four sides are fixed objects in every graph (training decides)
+    # round disks' headings ignored: an edge from a round object carries only the distance, and an edge
+    # touching one no relative heading (False: checkpoints before it; training turns it on)
+    round_invariant: bool = False
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -55,10 +58,16 @@ def make_activation(name: str) -> nn.Module:
     raise ValueError(f"unknown activation {name!r}; expected 'silu', 'softplus' or 'leaky_relu'")
 
 
-def edge_features(poses: Tensor, length_scale: float, edge_range: float | None = None) -> Tensor:
+def edge_features(
+    poses: Tensor, length_scale: float, edge_range: float | None = None, round: Tensor | None = None
+) -> Tensor:
     """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``; positions in length scales,
     saturating beyond ``edge_range`` of them (the network never extrapolates to offsets far beyond the
-    data's: they all look alike, as far)."""
+    data's: they all look alike, as far).
+
+    ``round (B, N)`` marks objects without a heading (round disks): seen from a round ``j`` the offset
+    is ``(|u|, 0)``, the distance alone, and an edge touching one has relative heading ``(0, 0)``; the
+    features then do not change when a round object turns."""
     p = poses[..., :2]  # (B, N, 2)
     th = poses[..., 2]  # (B, N)
     d = p[:, :, None, :] - p[:, None, :, :]  # (B, N_i, N_j, 2): p_i - p_j
@@ -67,10 +76,17 @@ def edge_features(poses: Tensor, length_scale: float, edge_range: float | None =
     ry = -s * d[..., 0] + c * d[..., 1]
     dth = th[:, :, None] - th[:, None, :]
     ux, uy = rx / length_scale, ry / length_scale
+    cd, sd = torch.cos(dth), torch.sin(dth)
+    if round is not None:
+        rj = round[:, None, :]  # (B, 1, N_j)
+        dist = torch.sqrt(ux * ux + uy * uy + 1e-12)  # the constant keeps the gradient finite at i == j
+        ux, uy = torch.where(rj, dist, ux), torch.where(rj, torch.zeros_like(uy), uy)
+        either = rj | round[:, :, None]
+        cd, sd = torch.where(either, torch.zeros_like(cd), cd), torch.where(either, torch.zeros_like(sd), sd)
     if edge_range is not None:
         f = torch.rsqrt(1 + (ux * ux + uy * uy) / edge_range**2)
         ux, uy = ux * f, uy * f
-    return torch.stack([ux, uy, torch.cos(dth), torch.sin(dth)], dim=-1)
+    return torch.stack([ux, uy, cd, sd], dim=-1)
 
 
 class _MessageLayer(nn.Module):
@@ -134,8 +150,10 @@ class EnergyNet(nn.Module):
         sizes: Tensor,
         mask: Tensor | None = None,
         nodes: Tensor | None = None,
+        round: Tensor | None = None,
     ) -> Tensor:
-        """Energy per scene. ``nodes`` may carry a precomputed :meth:`node_embedding` (broadcast over B)."""
+        """Energy per scene. ``nodes`` may carry a precomputed :meth:`node_embedding` (broadcast over B);
+        ``round (B or 1, N)``: the round objects, whose headings a ``round_invariant`` network ignores."""
         b, n, _ = poses.shape
         if mask is None:
             mask = torch.ones(b, n, dtype=torch.bool, device=poses.device)
@@ -144,13 +162,17 @@ class EnergyNet(nn.Module):
         maskf = mask.to(poses.dtype).expand(b, n)
         eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
         pair = maskf[:, :, None] * maskf[:, None, :] * (1 - eye)  # (B, N, N), no self-edges, no padding
+        rnd = round.expand(b, n) if round is not None and self.cfg.round_invariant else None
         if self.cfg.absolute:
             th = poses[..., 2:3]
-            absf = torch.cat([poses[..., :2] / self.cfg.length_scale, torch.cos(th), torch.sin(th)], dim=-1)
+            heading = torch.cat([torch.cos(th), torch.sin(th)], dim=-1)
+            if rnd is not None:
+                heading = heading * (~rnd)[..., None].to(heading.dtype)
+            absf = torch.cat([poses[..., :2] / self.cfg.length_scale, heading], dim=-1)
             v = torch.cat([v, absf], dim=-1)
             e = None
         else:
-            e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range)
+            e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range, rnd)
         for layer in self.layers:
             v = layer(v, e, pair)
         pooled = (v * maskf[..., None]).sum(dim=1)  # global add pooling

@@ -115,10 +115,6 @@ def _obj(
     )
 
 
-def _is_disk(o: SceneObject) -> bool:
-    return o.shape_kind == "disk" and math.isclose(o.size[0], o.size[1], rel_tol=1e-9)
-
-
 def footprint_extent(
     o: SceneObject, pose: Sequence[float] | None = None
 ) -> tuple[float, float, float, float]:
@@ -126,7 +122,7 @@ def footprint_extent(
     pose = o.pose if pose is None else pose
     if pose is None:
         raise SceneError(f"object {o.name!r}: has no pose")
-    if _is_disk(o):
+    if o.round:
         r = o.size[0] / 2
         return (pose[0] - r, pose[1] - r, pose[0] + r, pose[1] + r)
     pts = o.world_polygon(pose)
@@ -136,7 +132,7 @@ def footprint_extent(
 def _geom(o: SceneObject):
     from shapely.geometry import Point, Polygon
 
-    if _is_disk(o):
+    if o.round:
         pose = cast(Pose, o.pose)
         return Point(pose[0], pose[1]), o.size[0] / 2
     return Polygon(o.world_polygon()), 0.0
