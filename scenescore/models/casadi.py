@@ -51,15 +51,15 @@ def energy_mx(model, scene, poses):
             dx, dy = x[i] - x[j], y[i] - y[j]
             c, s = ca.cos(th[j]), ca.sin(th[j])
             ux, uy = (c * dx + s * dy) / ls, (-s * dx + c * dy) / ls
-            cd, sd = ca.cos(th[i] - th[j]), ca.sin(th[i] - th[j])
+            hc, hs = ca.cos(th[i] - th[j]), ca.sin(th[i] - th[j])
             if rnd[j]:  # seen from a round object: the distance alone (see edge_features)
                 ux, uy = ca.sqrt(ux * ux + uy * uy + 1e-12), 0
             if rnd[i] or rnd[j]:
-                cd, sd = 0, 0
+                hc, hs = 0, 0
             if cfg.edge_range is not None:
                 f = 1 / ca.sqrt(1 + (ux * ux + uy * uy) / cfg.edge_range**2)
                 ux, uy = ux * f, uy * f
-            cols.append(ca.vertcat(ux, uy, cd, sd))
+            cols.append(ca.vertcat(ux, uy, hc, hs))
         e = ca.horzcat(*cols)  # (4, P)
     for k in range(cfg.layers):
         pre = f"layers.{k}."

@@ -124,3 +124,39 @@ def test_failed_save_keeps_previous_file(tmp_path, monkeypatch):
     with pytest.raises(OSError):
         model.save(path)
     assert path.read_bytes() == before
+
+
+@pytest.mark.parametrize("absolute", [False, True])
+def test_round_objects_headings_are_ignored(absolute):
+    model = _model(round_invariant=True, absolute=absolute)
+    model.net.double()
+    scene = DiningScenario().generate(1, seed=0)[0]  # plates and bowls are round, forks and knives not
+    st = model.tensors([scene])
+    assert st.round[0].tolist() == [o.round for o in scene.objects] and st.round.any() and not st.round.all()
+    x = st.poses.double()
+    e0 = model.energy(x, st)
+    g = torch.Generator().manual_seed(3)
+    turned = x.clone()
+    turned[0, st.round[0], 2] = torch.rand(int(st.round.sum()), generator=g, dtype=x.dtype) * 6 - 3
+    assert torch.allclose(model.energy(turned, st), e0, atol=1e-10)
+    fork = x.clone()
+    fork[0, 1, 2] += 0.5  # fork_0 has a heading
+    assert not torch.allclose(model.energy(fork, st), e0, atol=1e-6)
+    if not absolute:
+        for angle, shift in [(0.7, (0.3, -0.2)), (math.pi, (0.0, 0.0))]:
+            assert torch.allclose(model.energy(_rigid(x, angle, shift), st), e0, atol=1e-10)
+    # without the option the same network reads the round objects' headings
+    plain = _model(absolute=absolute)
+    plain.net.double()
+    assert not torch.allclose(plain.energy(turned, st), plain.energy(x, st), atol=1e-6)
+
+
+def test_round_invariant_gradcheck_float64():
+    model = _model(round_invariant=True)
+    model.net.double()
+    scene = DiningScenario().generate(1, seed=2)[0]
+    fn = model.energy_fn(scene)
+    x = model.tensors([scene]).poses.double().repeat(2, 1, 1)
+    x[1, 3, :2] = x[1, 0, :2]  # a bowl on its plate's centre: two round objects at one point
+    x.requires_grad_(True)
+    assert torch.autograd.gradcheck(fn, (x,), eps=1e-6, atol=1e-6)
