@@ -58,14 +58,18 @@ class LangevinConfig:
             )
         if not self.temperature > 0:
             raise ValueError(f"langevin: temperature: expected > 0, got {self.temperature!r}")
-        for name in ("step_init", "step_final", "max_delta"):
+        for name, zero_ok in (
+            ("step_init", False),
+            ("step_final", False),
+            ("max_delta", False),
+            ("noise", True),
+            ("power", True),
+        ):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"langevin: {name}: expected a finite number > 0, got {v!r}")
-        if not (isinstance(self.noise, (int, float)) and math.isfinite(self.noise) and self.noise >= 0):
-            raise ValueError(f"langevin: noise: expected a finite number >= 0, got {self.noise!r}")
-        if not (isinstance(self.power, (int, float)) and math.isfinite(self.power) and self.power >= 0):
-            raise ValueError(f"langevin: power: expected a finite number >= 0, got {self.power!r}")
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
+                raise ValueError(
+                    f"langevin: {name}: expected a finite number {'>=' if zero_ok else '>'} 0, got {v!r}"
+                )
 
     def step_size(self, t: int | Tensor) -> float | Tensor:
         """``lambda_t``, decaying from ``step_init`` to ``step_final`` over ``steps`` (then constant)."""

@@ -20,8 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..evaluation import MissingCase, case_errors
-from ..models import ScoreModel
-from ..models.trust import BOUND_TOL, touching_bound
+from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
 from ..placement import PLACE, place_many
 from ..scenarios import get
 from ..scenarios.zoo import ZOO
@@ -114,14 +113,16 @@ def run_one(
     placed = []
     for k in range(0, len(cases), 8):
         placed += place_many(model, [c.scene for c in cases[k : k + 8]], PLACE, seed + k)
+    # the energy at each placement and at its truth: a placement with the higher of the two is a
+    # failure of the search; with the lower, the learned energy prefers the wrong pose
+    truths = [p.with_poses([c.truth], [c.name]) for c, p in zip(cases, placed)]
+    energies = energy_per_object(model, placed + truths)
     records: list[dict[str, Any]] = []
     worst: tuple[MissingCase, Scene, float] | None = None
-    for c, p in zip(cases, placed):
+    for k, (c, p) in enumerate(zip(cases, placed)):
         pose = p[c.name].pose
         assert pose is not None
-        # the energy at the placement and at the truth: a placement with the higher of the two is a
-        # failure of the search; with the lower, the learned energy prefers the wrong pose
-        e_placed, e_truth = _energies(model, [p, p.with_poses([c.truth], [c.name])])
+        e_placed, e_truth = energies[k], energies[len(cases) + k]
         sym = c.category in sc.symmetric
         t, r = case_errors(c, pose, sym)
         ot, orr = case_errors(c, sc.oracle(c.scene, c.name), sym)
@@ -144,15 +145,6 @@ def run_one(
             }
         )
     return {"cases": records, "worst": worst, "seconds": time.perf_counter() - t0}
-
-
-def _energies(model: ScoreModel, scenes: list[Scene]) -> list[float]:
-    """The learned energy of each (fully posed) scene."""
-    import torch
-
-    st = model.tensors(scenes)
-    with torch.no_grad():
-        return [float(e) for e in model.energy(st.poses, st)]
 
 
 def _worker(task: tuple[str, int, TrainConfig | None]) -> tuple[str, int, dict[str, Any]]:

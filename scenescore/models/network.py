@@ -80,9 +80,9 @@ def edge_features(
     if round is not None:
         rj = round[:, None, :]  # (B, 1, N_j)
         dist = torch.sqrt(ux * ux + uy * uy + 1e-12)  # the constant keeps the gradient finite at i == j
-        ux, uy = torch.where(rj, dist, ux), torch.where(rj, torch.zeros_like(uy), uy)
+        ux, uy = torch.where(rj, dist, ux), uy.masked_fill(rj, 0.0)
         either = rj | round[:, :, None]
-        cd, sd = torch.where(either, torch.zeros_like(cd), cd), torch.where(either, torch.zeros_like(sd), sd)
+        cd, sd = cd.masked_fill(either, 0.0), sd.masked_fill(either, 0.0)
     if edge_range is not None:
         f = torch.rsqrt(1 + (ux * ux + uy * uy) / edge_range**2)
         ux, uy = ux * f, uy * f
@@ -104,7 +104,7 @@ class _MessageLayer(nn.Module):
     def forward(self, v: Tensor, e: Tensor | None, pair_mask: Tensor) -> Tensor:
         # f's last linear is moved out of the sum over j (it is linear): sum_j p_ij (W a_ij + b) =
         # W (sum_j p_ij a_ij) + b deg_i, so the (B, N, N, H) tensors are the first layer's and its
-        # activation only; the masked sum is a batched matrix product
+        # activation only
         m = self.w_i(v)[:, :, None, :] + self.w_j(v)[:, None, :, :]  # (B, N, N, H)
         if self.w_e is not None and e is not None:
             m = m + self.w_e(e)
@@ -162,7 +162,10 @@ class EnergyNet(nn.Module):
         maskf = mask.to(poses.dtype).expand(b, n)
         eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
         pair = maskf[:, :, None] * maskf[:, None, :] * (1 - eye)  # (B, N, N), no self-edges, no padding
-        rnd = round.expand(b, n) if round is not None and self.cfg.round_invariant else None
+        # scenes without a round object take the plain path (the same numbers, less work)
+        rnd = None
+        if round is not None and self.cfg.round_invariant and bool(round.any()):
+            rnd = round.expand(b, n)
         if self.cfg.absolute:
             th = poses[..., 2:3]
             heading = torch.cat([torch.cos(th), torch.sin(th)], dim=-1)

@@ -26,7 +26,15 @@ import torch
 from ..geometry import footprint_core
 from ..scene import Scene, SceneObject
 
-__all__ = ["TrustReference", "Assessment", "reference", "assess", "touching_bound", "BOUND_TOL"]
+__all__ = [
+    "TrustReference",
+    "Assessment",
+    "reference",
+    "assess",
+    "touching_bound",
+    "energy_per_object",
+    "BOUND_TOL",
+]
 
 BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
@@ -98,7 +106,8 @@ def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: fl
     return None
 
 
-def _energies(model: Any, scenes: Sequence[Scene]) -> list[float]:
+def energy_per_object(model: Any, scenes: Sequence[Scene]) -> list[float]:
+    """The learned energy of each fully posed scene, divided by its number of objects."""
     with torch.no_grad():
         st = model.tensors(scenes)
         e = model.energy(st.poses, st)
@@ -129,7 +138,7 @@ def reference(
     uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
     radius = max(1.0, 1.5 * feature_noise * math.sqrt(feats.shape[1]))
     return TrustReference(
-        energies=sorted(_energies(model, held_out or train)),
+        energies=sorted(energy_per_object(model, held_out or train)),
         length_scale=length,
         nearest=nearest,
         nearest_any=max(nearest.values(), default=0.0),
@@ -146,7 +155,7 @@ def assess(
 
     ``feats``: the scene's encoded features ``(N, F)`` when the caller has them (saves encoding again).
     """
-    e = _energies(model, [scene])[0]
+    e = energy_per_object(model, [scene])[0]
     ref_e = np.asarray(ref.energies)
     confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
     beyond = e > ref.energy_limit if ref_e.size else False
