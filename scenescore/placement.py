@@ -12,7 +12,7 @@ from typing import Protocol
 
 from tqdm.auto import tqdm
 
-from .costs import LearnedEnergy
+from .costs import Cost, HingeCollision, LearnedEnergy
 from .encoders import Encoder
 from .models import ScoreModel
 from .problem import Problem
@@ -22,22 +22,80 @@ from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
 from .training import TrainConfig, train
 
-__all__ = ["PLACE", "place", "place_many", "placement_problem", "Placer", "SceneScorePlacer"]
+__all__ = [
+    "PLACE",
+    "OVERLAP_WEIGHT",
+    "place",
+    "place_many",
+    "placement_problem",
+    "non_overlap",
+    "overlapping",
+    "Placer",
+    "SceneScorePlacer",
+]
 
 
 #: placement's default: 64 particles seeded by the best of 2048 uniform draws, the PLACEMENT schedule
 PLACE = LangevinOptions(particles=64, candidates=2048, chain=PLACEMENT)
+#: the weight of non-overlap in placement: energy per length scale of penetration (free of units)
+OVERLAP_WEIGHT = 10.0
 
 
-def placement_problem(model: ScoreModel, scene: Scene) -> Problem:
-    """The problem :func:`place` solves: the learned energy alone, the unknown poses movable."""
+def non_overlap(model: ScoreModel, scene: Scene) -> HingeCollision | None:
+    """Hinge non-overlap between each object to place and every other object, except category pairs that
+    overlap in the model's training data (a lamp on its nightstand); weighted per length scale of
+    penetration. None when no pair is left."""
+    trust = model.trust
+    todo = set(scene.unknown)
+    pairs = [
+        [a.name, b.name]
+        for k, a in enumerate(scene.objects)
+        for b in scene.objects[k + 1 :]
+        if (a.name in todo or b.name in todo) and not (trust and trust.may_overlap(a.category, b.category))
+    ]
+    if not pairs:
+        return None
+    return HingeCollision(pairs=pairs, name="overlap")
+
+
+def overlapping(model: ScoreModel, scene: Scene, names: list[str]) -> list[tuple[str, str]]:
+    """Pairs ``(placed, other)`` whose footprints overlap in ``scene`` by the exact check (shapely,
+    the feasibility tolerance), leaving out category pairs that overlap in the training data."""
+    from .exact import collides
+    from .problem import FEASIBILITY_TOL
+
+    trust = model.trust
+    out = []
+    for n in names:
+        a = scene[n]
+        for b in scene.objects:
+            if b.name == n or b.pose is None or a.pose is None or (b.name in names and b.name < n):
+                continue
+            if trust and trust.may_overlap(a.category, b.category):
+                continue
+            if collides(a, a.pose, b, b.pose, FEASIBILITY_TOL):
+                out.append((n, b.name))
+    return out
+
+
+def placement_problem(model: ScoreModel, scene: Scene, energy_only: bool = False) -> Problem:
+    """The problem :func:`place` solves, the unknown poses movable: the learned energy plus
+    :func:`non_overlap` (``energy_only``: the learned energy alone, the paper's protocol)."""
     if not scene.unknown:
         raise SceneError("place: the scene has no object with an unknown pose (pose: null) to place")
-    return Problem(scene, LearnedEnergy(model), movable=scene.unknown, name="place")
+    cost: Cost = LearnedEnergy(model)
+    hinge = None if energy_only else non_overlap(model, scene)
+    if hinge is not None:
+        cost = cost + (OVERLAP_WEIGHT / model.config.length_scale) * hinge
+    return Problem(scene, cost, movable=scene.unknown, name="place")
 
 
 def place_many(
-    model: ScoreModel, scenes: list[Scene], options: LangevinOptions | None = None, seed: int = 0
+    model: ScoreModel,
+    scenes: list[Scene],
+    options: LangevinOptions | None = None,
+    seed: int = 0,
+    energy_only: bool = False,
 ) -> list[Scene]:
     """:func:`place` for several scenes at once: their problems solved together by
     :meth:`LangevinSolver.solve_many`, one batch per number of objects (the timings need it)."""
@@ -48,7 +106,8 @@ def place_many(
         if s.unknown:
             groups.setdefault(len(s), []).append(i)
     for idx in groups.values():
-        results = solver.solve_many([placement_problem(model, scenes[i]) for i in idx], seed=seed)
+        problems = [placement_problem(model, scenes[i], energy_only) for i in idx]
+        results = solver.solve_many(problems, seed=seed)
         for i, r in zip(idx, results):
             out[i] = _filled(scenes[i], r)
     return out
@@ -65,15 +124,23 @@ def _filled(scene: Scene, result: Result) -> Scene:
     return out
 
 
-def place(model: ScoreModel, scene: Scene, options: LangevinOptions | None = None, seed: int = 0) -> Scene:
+def place(
+    model: ScoreModel,
+    scene: Scene,
+    options: LangevinOptions | None = None,
+    seed: int = 0,
+    energy_only: bool = False,
+) -> Scene:
     """Fill every ``null`` pose of ``scene`` (the others stay fixed); returns a new scene.
 
     This is ``ss.solve(placement_problem(model, scene), LangevinSolver(options or PLACE), seed=seed)``:
-    placing and solving give the same answer for the same model, seed and options.
+    placing and solving give the same answer for the same model, seed and options. By default the
+    placed objects keep off the others (:func:`non_overlap`); ``energy_only`` places by the learned
+    energy alone.
     """
     if not scene.unknown:
         return scene.copy()
-    r = solve(placement_problem(model, scene), LangevinSolver(options or PLACE), seed=seed)
+    r = solve(placement_problem(model, scene, energy_only), LangevinSolver(options or PLACE), seed=seed)
     return _filled(scene, r)
 
 
@@ -94,6 +161,7 @@ class SceneScorePlacer:
     name: str = "SceneScore"
     train_config: TrainConfig = field(default_factory=TrainConfig)
     place_options: LangevinOptions = PLACE
+    energy_only: bool = True  # the paper's protocol: the learned energy alone
     encoder: Encoder | None = None
     progress: bool = False
     model: ScoreModel | None = None
@@ -109,6 +177,8 @@ class SceneScorePlacer:
         out: list[Scene] = []
         with tqdm(total=len(scenes), desc="place", unit="scene", disable=not self.progress) as bar:
             for k in range(0, len(scenes), batch):
-                out += place_many(model, scenes[k : k + batch], self.place_options, seed + k)
+                out += place_many(
+                    model, scenes[k : k + batch], self.place_options, seed + k, self.energy_only
+                )
                 bar.update(len(scenes[k : k + batch]))
         return out

@@ -10,7 +10,8 @@ import torch
 import scenescore as ss
 from scenescore.encoders import FootprintEncoder
 from scenescore.models import ScoreModel
-from scenescore.placement import PLACE, place, place_many, placement_problem
+from scenescore.models.trust import overlapping_categories, reference
+from scenescore.placement import PLACE, non_overlap, overlapping, place, place_many, placement_problem
 from scenescore.solvers.langevin import LangevinSolver
 
 SMALL = replace(PLACE, particles=16, candidates=128, chain=replace(PLACE.chain, steps=10, final_descent=5))
@@ -57,8 +58,52 @@ def test_place_many_fills_every_scene_and_keeps_the_rest():
         (lo, hi), (x, y, _) = np.array(s.bounds), o[s.unknown[0]].pose
         assert lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]
     # batched energies equal each scene's own energy (the fused LearnedEnergy.stack)
-    probs = [placement_problem(model, s) for s in scenes]
+    probs = [placement_problem(model, s, energy_only=True) for s in scenes]
     x = torch.cat([p.initial(4, torch.Generator().manual_seed(k)) for k, p in enumerate(probs)])
     fused = ss.costs.LearnedEnergy.stack([p.cost["energy"] for p in probs], [4, 4, 4])(x)
     each = torch.cat([p.evaluate(x[4 * k : 4 * k + 4]) for k, p in enumerate(probs)])
     assert torch.allclose(fused, each, rtol=1e-5, atol=1e-6)
+
+
+def _crowded() -> ss.Scene:
+    """A dining scene with its bowl to place and four fixed boxes over much of the table."""
+    scene = _scenes()[0].without("bowl_0")
+    boxes = [
+        ss.SceneObject(f"box_{k}", "clutter", (0.25, 0.25), (x, y, 0.3), fixed=True)
+        for k, (x, y) in enumerate([(-0.3, -0.3), (0.3, -0.3), (-0.3, 0.3), (0.3, 0.3)])
+    ]
+    return ss.Scene(scene.objects + boxes, scene.bounds)
+
+
+def test_place_keeps_off_the_other_objects_by_default():
+    model, scene = _model(), _crowded()
+    problem = placement_problem(model, scene)
+    assert [c.name for _, c in problem.cost.items] == ["energy", "overlap"]
+    assert [c.name for _, c in placement_problem(model, scene, energy_only=True).cost.items] == ["energy"]
+    filled = place(model, scene, SMALL, seed=0)
+    assert overlapping(model, filled, ["bowl_0"]) == []
+    # the check itself: the bowl put on a box is reported against that box
+    on_box = filled.with_poses([(0.3, 0.3, 0.0)], ["bowl_0"])
+    assert ("bowl_0", "box_3") in overlapping(model, on_box, ["bowl_0"])
+
+
+def test_categories_that_overlap_in_the_data_may_overlap_when_placed():
+    """A lamp stands on its nightstand in every example: placement's non-overlap leaves that pair be."""
+    scenes = [
+        ss.Scene(
+            [
+                ss.SceneObject("stand_0", "nightstand", (0.4, 0.4), (x, 0.0, 0.0)),
+                ss.SceneObject("lamp_0", "lamp", (0.2, 0.2), (x + 0.05, 0.0, 0.0), shape="disk"),
+                ss.SceneObject("rug_0", "rug", (0.5, 0.3), (x, 0.8, 0.0)),
+            ],
+            ((-2.0, -2.0), (2.0, 2.0)),
+        )
+        for x in (-1.0, 0.0, 1.0)
+    ]
+    assert overlapping_categories(scenes, 0.01) == [["lamp", "nightstand"]]
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    model.info["trust"] = reference(model, scenes).to_dict()
+    hinge = non_overlap(model, scenes[0].without("lamp_0"))
+    assert hinge is not None and hinge.pairs == [["lamp_0", "rug_0"]]
+    assert overlapping(model, scenes[0], ["lamp_0"]) == []

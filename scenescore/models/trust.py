@@ -33,11 +33,13 @@ __all__ = [
     "assess",
     "touching_bound",
     "energy_per_object",
+    "overlapping_categories",
     "BOUND_TOL",
 ]
 
 BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
+OVERLAP_TOL = 0.1  # length scales of penetration before two objects of the data count as overlapping
 MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
 
 
@@ -52,6 +54,13 @@ class TrustReference:
     touches_bounds: list[str]  # categories with an object touching the bounds in the data
     features: list[list[float]] = field(default_factory=list)  # distinct feature vectors seen in training
     feature_radius: float = 1.0  # an object farther than this from every training feature is novel
+    # category pairs whose footprints overlap somewhere in the data (a lamp on a nightstand): placement's
+    # non-overlap leaves them be; None in checkpoints from before it was stored (then no pair is exempt)
+    overlaps: list[list[str]] | None = None
+
+    def may_overlap(self, a: str, b: str) -> bool:
+        """Whether objects of categories ``a`` and ``b`` overlap somewhere in the data."""
+        return self.overlaps is not None and sorted((a, b)) in self.overlaps
 
     @property
     def energy_limit(self) -> float:
@@ -106,6 +115,25 @@ def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: fl
     return None
 
 
+def overlapping_categories(scenes: Sequence[Scene], tol: float) -> list[list[str]]:
+    """Sorted category pairs ``[a, b]`` whose footprints overlap by more than ``tol`` metres of
+    penetration in some scene (exact, shapely; pairs whose bounding circles are apart are skipped)."""
+    from ..exact import collides
+
+    found: set[tuple[str, str]] = set()
+    for s in scenes:
+        p = s.poses()
+        reach = np.array([float(np.hypot(*o.size)) / 2 for o in s.objects])
+        d = np.linalg.norm(p[:, None, :2] - p[None, :, :2], axis=-1)
+        near = np.argwhere(np.triu(d < reach[:, None] + reach[None, :] - tol, k=1))
+        for i, j in near:
+            a, b = s.objects[i], s.objects[j]
+            pair = (min(a.category, b.category), max(a.category, b.category))
+            if pair not in found and collides(a, p[i], b, p[j], tol):
+                found.add(pair)
+    return [list(pr) for pr in sorted(found)]
+
+
 def energy_per_object(model: Any, scenes: Sequence[Scene]) -> list[float]:
     """The learned energy of each fully posed scene, divided by its number of objects."""
     with torch.no_grad():
@@ -145,6 +173,7 @@ def reference(
         touches_bounds=sorted(touching),
         features=uniq.tolist(),
         feature_radius=radius,
+        overlaps=overlapping_categories(scenes, OVERLAP_TOL * length),
     )
 
 

@@ -45,6 +45,17 @@ def test_generate_train_place(trained, capsys):
     assert all(o["pose"] is not None for o in filled["objects"])
     assert (d / "f.png").read_bytes()[:4] == b"\x89PNG"
     assert "x=" in capsys.readouterr().out
+    # the paper's protocol places by the energy alone; an overlap left is named by the exact check
+    from scenescore.models import load
+    from scenescore.placement import overlapping
+    from scenescore.scene import Scene
+
+    rc = main(["place", str(d / "m.ckpt"), str(d / "q.json"), "--energy-only", "--out", str(d / "e.json")])
+    assert rc == 0
+    name = scene["objects"][1]["name"]
+    left = overlapping(load(d / "m.ckpt"), Scene.from_json(d / "e.json"), [name])
+    err = capsys.readouterr().err
+    assert all(f"{a}: overlaps {b} (exact check)" in err for a, b in left)
 
 
 def test_user_errors_are_one_line(trained, tmp_path, capsys):
