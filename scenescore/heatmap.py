@@ -5,10 +5,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from .errors import ConfigError, check_number
 from .models import ScoreModel
 from .scene import Scene
 
-__all__ = ["energy_grid", "grid_minimum"]
+__all__ = ["energy_grid", "grid_minimum", "MAX_CELLS"]
+
+MAX_CELLS = 4_000_000  # grid points of one heatmap (2000 x 2000)
 
 
 def energy_grid(
@@ -17,6 +20,13 @@ def energy_grid(
     """Energy with ``name`` at every grid point of the scene's bounds (heading 0), the rest as they are.
     ``theta``: the object's heading. Returns ``(xs, ys, E)`` with ``E[j, i]`` at ``(xs[i], ys[j])``."""
     (x0, y0), (x1, y1) = scene.bounds
+    check_number("heatmap", "resolution", resolution, 0, open_lo=True)
+    cells = ((x1 - x0) / resolution) * ((y1 - y0) / resolution)
+    if cells > MAX_CELLS:
+        raise ConfigError(
+            f"heatmap: resolution {resolution:g} m gives {cells:.3g} grid cells over the bounds "
+            f"{scene.bounds}; at most {MAX_CELLS:,} (a coarser resolution)"
+        )
     xs = np.arange(x0 + resolution / 2, x1, resolution)
     ys = np.arange(y0 + resolution / 2, y1, resolution)
     gx, gy = np.meshgrid(xs, ys)

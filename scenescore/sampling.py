@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from .errors import check_number
+
 __all__ = [
     "LangevinConfig",
     "TRAINING",
@@ -31,6 +33,9 @@ __all__ = [
     "resample",
     "finite_or_inf",
 ]
+
+
+MAX_STEPS = 1_000_000  # a chain longer than this is a typo, not a plan
 
 
 @dataclass(frozen=True)
@@ -51,25 +56,17 @@ class LangevinConfig:
     temperature: float = 1.0  # of the resampling weights softmax(-E / temperature)
 
     def __post_init__(self) -> None:
-        if self.steps < 0 or self.final_descent < 0 or self.resample < 0:
-            raise ValueError(
-                f"langevin: expected steps, final_descent, resample >= 0, got {self.steps}, "
-                f"{self.final_descent}, {self.resample}"
-            )
-        if not self.temperature > 0:
-            raise ValueError(f"langevin: temperature: expected > 0, got {self.temperature!r}")
+        for name in ("steps", "final_descent", "resample"):
+            check_number("langevin", name, getattr(self, name), 0, MAX_STEPS, integer=True)
         for name, zero_ok in (
+            ("temperature", False),
             ("step_init", False),
             ("step_final", False),
             ("max_delta", False),
             ("noise", True),
             ("power", True),
         ):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
-                raise ValueError(
-                    f"langevin: {name}: expected a finite number {'>=' if zero_ok else '>'} 0, got {v!r}"
-                )
+            check_number("langevin", name, getattr(self, name), 0, open_lo=not zero_ok)
 
     def step_size(self, t: int | Tensor) -> float | Tensor:
         """``lambda_t``, decaying from ``step_init`` to ``step_final`` over ``steps`` (then constant)."""

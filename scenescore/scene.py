@@ -52,8 +52,32 @@ def wrap_angle(a):
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def check_output_path(path: str | os.PathLike, what: str, folder: bool = False) -> None:
+    """Fail early, with a one-line :class:`SceneError`, when ``path`` cannot be written: an existing
+    folder where a file is meant (or a file where a folder is), a regular file among its parents, or a
+    nearest existing parent that is not writable."""
+    p = Path(path)
+    if p.exists() and p.is_dir() != folder:
+        kind = "a file" if p.is_dir() is False else "a folder"
+        raise SceneError(f"{what} {p}: is {kind}; expected {'a folder' if folder else 'a file'} to write")
+    parent = p if folder else p.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise SceneError(f"{what} {p}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise SceneError(f"{what} {p}: the folder {parent} is not writable")
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename: a failure leaves the old file."""
+    """Write ``data`` to ``path`` through a temporary file and a rename: a failure leaves the old file.
+    The file gets the usual permissions (0666 less the umask), not the temporary file's 0600."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -62,6 +86,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -23,6 +23,7 @@ import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .encoders import Encoder, FootprintEncoder
+from .errors import ConfigError, check_number
 from .models import SceneTensors, ScoreModel
 from .models.trust import reference, touching_bound
 from .sampling import TRAINING, LangevinConfig, langevin, uniform_init
@@ -85,6 +86,33 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):
             self.chain = LangevinConfig(**self.chain)
+        own = "TrainConfig"
+        check_number(own, "iterations", self.iterations, 1, 10_000_000, integer=True)
+        for name in ("batch_scenes", "negatives", "chain_steps"):
+            check_number(own, name, getattr(self, name), 1, 100_000, integer=True)
+        check_number(own, "perturbed", self.perturbed, 0, 100_000, integer=True)
+        for name in ("restart", "full_fraction", "single_fraction"):
+            check_number(own, name, getattr(self, name), 0, 1)
+        if self.full_fraction + self.single_fraction > 1:
+            raise ConfigError(
+                f"{own}: full_fraction + single_fraction: expected at most 1, got "
+                f"{self.full_fraction} + {self.single_fraction}"
+            )
+        check_number(own, "lr", self.lr, 0, open_lo=True)
+        for name in (
+            "lr_final",
+            "weight_decay",
+            "energy_reg",
+            "grad_penalty",
+            "grad_margin",
+            "feature_noise",
+        ):
+            check_number(own, name, getattr(self, name), 0)
+        for name in ("length_scale", "edge_range"):
+            if getattr(self, name) is not None:
+                check_number(own, name, getattr(self, name), 0, open_lo=True)
+        if not isinstance(self.chain, LangevinConfig):
+            raise ConfigError(f"{own}: chain: expected a LangevinConfig or a dict of its fields")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -100,3 +100,16 @@ def test_dining_is_seeded_and_oracle_is_close():
             x, y, _ = sc.oracle(s.without(name), name)
             tx, ty, _ = s[name].pose
             assert ((x - tx) ** 2 + (y - ty) ** 2) ** 0.5 < 0.04
+
+
+def test_atomic_writes_take_the_umask_not_0600(tmp_path):
+    import os
+
+    from scenescore.scene import atomic_write_text
+
+    old = os.umask(0o022)
+    try:
+        atomic_write_text(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 # modules of this package that add sub-commands, in the order --help lists them
@@ -19,10 +20,11 @@ class UserError(Exception):
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
+    from ..errors import ConfigError
     from ..models import CheckpointError
     from ..scene import SceneError
 
-    errs: list[type[BaseException]] = [UserError, SceneError, CheckpointError, FileNotFoundError]
+    errs: list[type[BaseException]] = [UserError, SceneError, CheckpointError, ConfigError, FileNotFoundError]
     try:
         from ..problem import ProblemError
 
@@ -52,6 +54,20 @@ def add_common(p: argparse.ArgumentParser, seed: int = 0) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+FOLDER_OUTPUTS = {"demo", "experiment"}  # commands whose --out is a folder
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Every output path the command was given can be written, checked before any work is done."""
+    from ..scene import check_output_path
+
+    for attr in ("out", "plot", "report", "scene_out", "images"):
+        value = getattr(args, attr, None)
+        if isinstance(value, (str, os.PathLike)):
+            folder = attr == "images" or (attr == "out" and args.command in FOLDER_OUTPUTS)
+            check_output_path(value, "--" + attr.replace("_", "-"), folder=folder)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -59,6 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
+        _check_outputs(args)
         rc = args.func(args)
     except _user_errors() as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)

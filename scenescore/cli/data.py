@@ -106,6 +106,9 @@ def run_train(args: argparse.Namespace) -> int:
     from ..scene import atomic_write_text, read_jsonl, write_jsonl
     from ..training import TrainConfig, split_validation, train
 
+    # settings first: a bad value fails before any data is read or any training is done
+    given = {"iterations": args.iterations, "negatives": args.negatives}
+    cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
     encoder = make_encoder(args.encoder or ("image" if args.data.is_dir() else "footprint"))
     if args.data.is_dir():
         from ..vision import scenes_from_image_folder
@@ -116,11 +119,6 @@ def run_train(args: argparse.Namespace) -> int:
         scenes = read_jsonl(args.data)
     else:
         raise UserError(f"{args.data}: no such file or folder")
-    cfg = TrainConfig()
-    if args.iterations is not None:
-        cfg.iterations = args.iterations
-    if args.negatives is not None:
-        cfg.negatives = args.negatives
     model_kw = {k: v for k, v in {"activation": args.activation, "message": args.message}.items() if v}
     if args.absolute:
         model_kw["absolute"] = True

@@ -39,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from ..training import TrainConfig
 
     t0 = time.perf_counter()
+    cfg = TrainConfig() if args.iterations is None else TrainConfig(iterations=args.iterations)
     out: Path = args.out
     scenario = DiningScenario()
     train, test = scenario.split(args.seed)
@@ -47,9 +48,6 @@ def run(args: argparse.Namespace) -> int:
     write_jsonl(out / "test.jsonl", test)
     print(f"1. generated {len(train)} training and {len(test)} test dining scenes -> {out}/train.jsonl")
 
-    cfg = TrainConfig()
-    if args.iterations is not None:
-        cfg.iterations = args.iterations
     placer = SceneScorePlacer(train_config=cfg, progress=not args.quiet)
     placer.fit(train, seed=args.seed)
     assert placer.model is not None

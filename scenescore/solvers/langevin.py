@@ -24,11 +24,15 @@ import torch
 from torch import Tensor
 
 from ..costs.base import stack_sums
+from ..errors import ConfigError, check_number
 from ..problem import FEASIBILITY_TOL, Problem, ProblemError
 from ..sampling import SAMPLING, LangevinConfig, langevin, screen
 from .base import StageSolver, torch_threads
 from .projection import LinearisedProjection
 from .result import Result, Status, make_result
+
+MAX_PARTICLES = 65_536  # more is a typo, not a plan: memory grows with particles x objects^2
+MAX_CANDIDATES = 1_000_000
 
 __all__ = ["LangevinOptions", "LangevinSolver"]
 
@@ -50,17 +54,15 @@ class LangevinOptions:
 
     def __post_init__(self) -> None:
         if self.projection not in ("none", "closed_form", "qp"):
-            raise ValueError(
+            raise ConfigError(
                 f"langevin: projection: expected 'none', 'closed_form' or 'qp', got {self.projection!r}"
             )
-        if self.particles < 1 or self.candidates < 0:
-            raise ValueError(
-                f"langevin: expected particles >= 1 and candidates >= 0, got {self.particles}, {self.candidates}"
-            )
-        if self.threads is not None and self.threads < 1:
-            raise ValueError(f"langevin: threads: expected >= 1 or None, got {self.threads!r}")
+        check_number("langevin", "particles", self.particles, 1, MAX_PARTICLES, integer=True)
+        check_number("langevin", "candidates", self.candidates, 0, MAX_CANDIDATES, integer=True)
+        if self.threads is not None:
+            check_number("langevin", "threads", self.threads, 1, 1024, integer=True)
         if not isinstance(self.chain, LangevinConfig):
-            raise ValueError(f"langevin: chain: expected a LangevinConfig, got {type(self.chain).__name__}")
+            raise ConfigError(f"langevin: chain: expected a LangevinConfig, got {type(self.chain).__name__}")
 
     @classmethod
     def from_flat(cls, **options: Any) -> LangevinOptions:

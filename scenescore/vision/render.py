@@ -100,6 +100,9 @@ def _paint_object(
     return layer, mask, (slice(r0, r1), slice(c0, c1))
 
 
+MAX_PIXELS = 64_000_000  # one image: 8000 x 8000, about 200 MB with its masks
+
+
 def render_scene(
     scene: Scene,
     ppm: float = DEFAULT_PPM,
@@ -113,9 +116,14 @@ def render_scene(
     holds one ``HxW`` bool array per object, in scene order: the pixels where that object is visible
     (so the masks never overlap); an object without a pose, or outside the image, has an empty mask.
     """
-    if ppm <= 0:
-        raise SceneError(f"render_scene: ppm must be positive, got {ppm}")
+    if not (math.isfinite(ppm) and ppm > 0):
+        raise SceneError(f"render_scene: ppm must be a positive number, got {ppm}")
     shape = image_shape(scene.bounds, ppm)
+    if shape[0] * shape[1] > MAX_PIXELS:
+        raise SceneError(
+            f"render_scene: ppm {ppm:g} gives a {shape[1]} x {shape[0]} image for bounds {scene.bounds}; "
+            f"at most {MAX_PIXELS:,} pixels (lower the ppm)"
+        )
     image = np.empty((*shape, 3), np.uint8)
     image[:] = np.asarray(background, dtype=np.uint8)
     owner = np.full(shape, -1, dtype=np.int32)

@@ -77,6 +77,36 @@ def test_user_errors_are_one_line(trained, tmp_path, capsys):
     assert "nothing to place" in capsys.readouterr().err
 
 
+def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys):
+    """Out-of-range numbers and unwritable outputs: one line, exit 2, nothing trained or written."""
+    d = trained
+    data, ckpt, q = str(d / "data.jsonl"), str(d / "m.ckpt"), str(d / "q.json")
+    (tmp_path / "afile").write_text("x")
+    cases = [
+        (
+            ["train", data, "--out", str(tmp_path / "n.ckpt"), "--iterations", "-5"],
+            "iterations: expected an integer >= 1",
+        ),
+        (
+            ["train", data, "--out", str(tmp_path / "n.ckpt"), "--negatives", "0"],
+            "negatives: expected an integer >= 1",
+        ),
+        (["train", data, "--out", str(tmp_path / "afile" / "m.ckpt")], "is a file, not a folder"),
+        (["place", ckpt, q, "--particles", "0"], "particles: expected an integer >= 1"),
+        (["place", ckpt, q, "--out", str(tmp_path)], "is a folder; expected a file"),
+        (
+            ["heatmap", ckpt, q, "--object", "x", "--out", str(tmp_path / "h.png"), "--resolution", "0"],
+            "resolution",
+        ),
+        (["demo", "--out", str(tmp_path / "afile")], "expected a folder"),
+    ]
+    for argv, msg in cases:
+        assert main([*argv, "--quiet"]) == 2, argv
+        err = capsys.readouterr().err
+        assert msg in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, (argv, err)
+    assert not (tmp_path / "n.ckpt").exists()
+
+
 def test_experiment_missing_quick_writes_outputs(tmp_path):
     torch.set_num_threads(1)
     out = tmp_path / "exp"
