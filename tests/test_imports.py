@@ -11,6 +11,7 @@ PKG = Path(__file__).resolve().parents[1] / "scenescore"
 
 # the layer of each module (the longest matching prefix wins); a module may import its own layer or below
 LAYERS: list[tuple[str, int]] = [
+    ("scenescore.errors", 0),  # settings errors and range checks (imports nothing of the package)
     ("scenescore.scene", 0),
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),
