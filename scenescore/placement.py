@@ -8,7 +8,7 @@ placement defaults (:data:`PLACE`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, cast
 
 from tqdm.auto import tqdm
 
@@ -41,41 +41,33 @@ PLACE = LangevinOptions(particles=64, candidates=2048, chain=PLACEMENT)
 OVERLAP_WEIGHT = 10.0
 
 
-def non_overlap(model: ScoreModel, scene: Scene) -> HingeCollision | None:
-    """Hinge non-overlap between each object to place and every other object, except category pairs that
-    overlap in the model's training data (a lamp on its nightstand); weighted per length scale of
-    penetration. None when no pair is left."""
+def non_overlap(model: ScoreModel, scene: Scene, names: list[str] | None = None) -> HingeCollision | None:
+    """Hinge non-overlap between each object of ``names`` (default: those to place) and every other
+    object, except category pairs that overlap in the model's training data (a lamp on its nightstand);
+    each pair names the object of ``names`` first. None when no pair is left."""
     trust = model.trust
-    todo = set(scene.unknown)
+    todo = set(scene.unknown if names is None else names)
     pairs = [
-        [a.name, b.name]
+        [a.name, b.name] if a.name in todo else [b.name, a.name]
         for k, a in enumerate(scene.objects)
         for b in scene.objects[k + 1 :]
         if (a.name in todo or b.name in todo) and not (trust and trust.may_overlap(a.category, b.category))
     ]
-    if not pairs:
-        return None
-    return HingeCollision(pairs=pairs, name="overlap")
+    return HingeCollision(pairs=pairs, name="overlap") if pairs else None
 
 
 def overlapping(model: ScoreModel, scene: Scene, names: list[str]) -> list[tuple[str, str]]:
-    """Pairs ``(placed, other)`` whose footprints overlap in ``scene`` by the exact check (shapely,
-    the feasibility tolerance), leaving out category pairs that overlap in the training data."""
-    from .exact import collides
+    """Pairs ``(placed, other)`` that overlap in ``scene`` (every pose known): the exact check of
+    :func:`non_overlap`'s term over ``names``, at the feasibility tolerance."""
+    hinge = non_overlap(model, scene, names)
+    if hinge is None:
+        return []
     from .problem import FEASIBILITY_TOL
 
-    trust = model.trust
-    out = []
-    for n in names:
-        a = scene[n]
-        for b in scene.objects:
-            if b.name == n or b.pose is None or a.pose is None or (b.name in names and b.name < n):
-                continue
-            if trust and trust.may_overlap(a.category, b.category):
-                continue
-            if collides(a, a.pose, b, b.pose, FEASIBILITY_TOL):
-                out.append((n, b.name))
-    return out
+    term = cast(HingeCollision, hinge.bind(scene, names))
+    all_names = scene.names
+    by_label = {lab: (all_names[i], all_names[j]) for lab, (i, j) in zip(term.labels(), term.support())}
+    return [by_label[v.label] for v in term.check(scene.poses(), FEASIBILITY_TOL)]
 
 
 def placement_problem(model: ScoreModel, scene: Scene, energy_only: bool = False) -> Problem:

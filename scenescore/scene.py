@@ -64,7 +64,7 @@ def check_output_path(path: str | os.PathLike, what: str, folder: bool = False) 
     nearest existing parent that is not writable."""
     p = Path(path)
     if p.exists() and p.is_dir() != folder:
-        kind = "a file" if p.is_dir() is False else "a folder"
+        kind = "a folder" if p.is_dir() else "a file"
         raise SceneError(f"{what} {p}: is {kind}; expected {'a folder' if folder else 'a file'} to write")
     parent = p if folder else p.parent
     while not parent.exists():

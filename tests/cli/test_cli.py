@@ -80,7 +80,10 @@ def test_user_errors_are_one_line(trained, tmp_path, capsys):
 def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys):
     """Out-of-range numbers and unwritable outputs: one line, exit 2, nothing trained or written."""
     d = trained
-    data, ckpt, q = str(d / "data.jsonl"), str(d / "m.ckpt"), str(d / "q.json")
+    scene = json.loads((d / "data.jsonl").read_text().splitlines()[0])
+    scene["objects"][1]["pose"] = None
+    (tmp_path / "q.json").write_text(json.dumps(scene))
+    data, ckpt, q = str(d / "data.jsonl"), str(d / "m.ckpt"), str(tmp_path / "q.json")
     (tmp_path / "afile").write_text("x")
     cases = [
         (
