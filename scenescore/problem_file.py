@@ -33,6 +33,7 @@ from .costs import Cost, CostError, CostSpec, cost_types
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError
 from .solvers import available
+from .textfiles import MAX_DEPTH, check_yaml_tree, read_text
 
 __all__ = ["ProblemSpec", "load_problem", "LoadedProblem"]
 
@@ -200,20 +201,22 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
         if path is None:
             raise ProblemError("load_problem: give a path or text")
         p = Path(path)
-        if not p.exists():
-            raise ProblemError(f"{p}: no such problem file")
-        text = p.read_text()
+        text = read_text(p, ProblemError, "problem file")
         source, root = str(p), p.parent
     else:
         p = Path(path) if path else None
         source, root = str(path or "<problem>"), (p.parent if p else Path.cwd())
     try:
         node = yaml.compose(text)
+        if node is not None:  # bounded before anything expands the aliases
+            check_yaml_tree(node, source, ProblemError)
         data = yaml.safe_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         line = f":{mark.line + 1}" if mark else ""
         raise ProblemError(f"{source}{line}: not valid YAML: {getattr(e, 'problem', e)}") from None
+    except RecursionError:
+        raise ProblemError(f"{source}: YAML nested deeper than {MAX_DEPTH} levels") from None
     if not isinstance(data, dict) or node is None:
         raise ProblemError(
             f"{source}: expected a mapping with 'scene' and 'costs', got {type(data).__name__}"

@@ -264,6 +264,8 @@ class Scene:
     objects: list[SceneObject]
     bounds: Bounds = DEFAULT_BOUNDS
     meta: dict[str, Any] = field(default_factory=dict)
+    # where the scene was read from ("file:line"), for error messages; never written out
+    origin: str | None = field(default=None, compare=False, repr=False)
 
     # -- access ---------------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -318,6 +320,10 @@ class Scene:
 
     def copy(self) -> Scene:
         return copy.deepcopy(self)
+
+    def label(self, index: int | None = None) -> str:
+        """How errors name this scene: where it was read from (``file:line``), else ``scene {index}``."""
+        return self.origin or (f"scene {index}" if index is not None else "scene")
 
     def scaled(self, k: float) -> Scene:
         """Every length times ``k``: positions, sizes, polygon outlines and bounds (headings unchanged)."""
@@ -381,37 +387,27 @@ class Scene:
         meta = d.get("meta") or {}
         if not isinstance(meta, dict):
             raise SceneError(f"{where}: key 'meta': expected a mapping, got {meta!r}")
-        return cls(objects=objects, bounds=bounds, meta=meta)
+        return cls(objects=objects, bounds=bounds, meta=meta, origin=None if source is None else where)
 
     @classmethod
     def from_json(cls, path: str | os.PathLike) -> Scene:
         """Read one scene from a JSON file (or the first line of a ``.jsonl``)."""
-        path = Path(path)
-        if not path.exists():
-            raise SceneError(f"{path}: no such file")
-        text = path.read_text()
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise SceneError(f"{path}:{e.lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
+        from .textfiles import loads_json, read_text
+
+        data = loads_json(read_text(path, SceneError, "scene file"), str(path), SceneError)
         return cls.from_dict(data, source=str(path))
 
 
 def read_jsonl(path: str | os.PathLike) -> list[Scene]:
     """Read a ``.jsonl`` dataset, one scene per non-empty line; errors name the file and line."""
-    path = Path(path)
-    if not path.exists():
-        raise SceneError(f"{path}: no such file")
+    from .textfiles import loads_json, read_text
+
     scenes = []
-    with path.open() as f:
-        for lineno, line in enumerate(f, start=1):
-            if not line.strip():
-                continue
-            try:
-                data = json.loads(line)
-            except json.JSONDecodeError as e:
-                raise SceneError(f"{path}:{lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
-            scenes.append(Scene.from_dict(data, source=str(path), line=lineno))
+    for lineno, line in enumerate(read_text(path, SceneError, "dataset file").splitlines(), start=1):
+        if not line.strip():
+            continue
+        data = loads_json(line, str(path), SceneError, line=lineno)
+        scenes.append(Scene.from_dict(data, source=str(path), line=lineno))
     if not scenes:
         raise SceneError(f"{path}: no scenes in the file (expected one JSON scene per line)")
     return scenes

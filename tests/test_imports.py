@@ -12,13 +12,16 @@ PKG = Path(__file__).resolve().parents[1] / "scenescore"
 # the layer of each module (the longest matching prefix wins); a module may import its own layer or below
 LAYERS: list[tuple[str, int]] = [
     ("scenescore.errors", 0),  # settings errors and range checks (imports nothing of the package)
+    ("scenescore.textfiles", 0),  # bounded, decoded reading of JSON and YAML files
     ("scenescore.scene", 0),
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),
     ("scenescore.vision", 1),  # imaging primitives: render, segment, pose, crop, sprites
     ("scenescore.encoders", 2),
+    ("scenescore.encoders.efficientnet", 2),  # as clip: the pretrained extra imported only when built
     ("scenescore.vision.graph", 3),  # scene graphs from images (encodes crops)
     ("scenescore.models", 3),
+    ("scenescore.models.export", 3),  # ONNX export of the energy (onnx imported only when called)
     ("scenescore.sampling", 4),
     ("scenescore.costs", 5),
     ("scenescore.problem", 6),
@@ -33,6 +36,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.baselines", 10),
     ("scenescore.experiments", 11),
     ("scenescore.cli", 12),
+    ("scenescore.cli.export", 12),  # `scenescore export`
     ("scenescore.__main__", 12),
     ("scenescore", 12),  # the package's own __init__: the public face, above everything
 ]

@@ -103,10 +103,31 @@ def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:
     ck = read_checkpoint(path)
     try:
         cfg = EnergyConfig(**ck.energy_config)
-    except TypeError as e:
-        raise CheckpointError(f"{path}: checkpoint metadata is damaged ({e})") from None
+    except (TypeError, ValueError) as e:
+        raise CheckpointError(f"{path}: checkpoint metadata is damaged: energy_config: {e}") from None
+    with torch.device("meta"):  # the shapes the config declares, without allocating them
+        expected = {k: tuple(v.shape) for k, v in EnergyNet(cfg).state_dict().items()}
+    stored = {k: tuple(v.shape) for k, v in ck.tensors.items()}
+    if expected != stored:
+        diff = sorted(set(expected) ^ set(stored)) or [k for k in expected if expected[k] != stored[k]]
+        raise CheckpointError(
+            f"{path}: the weights do not match the stored energy_config (first difference: {diff[0]!r})"
+        )
+    for k, t in ck.tensors.items():
+        if t.is_floating_point() and not bool(torch.isfinite(t).all()):
+            raise CheckpointError(f"{path}: weight {k!r} holds NaN or infinite values; the file is damaged")
     if encoder is None:
-        encoder = make_encoder(ck.encoder["name"], ck.encoder.get("config"))
+        config = ck.encoder.get("config")
+        if config is not None and not isinstance(config, dict):
+            raise CheckpointError(f"{path}: checkpoint metadata: encoder config: expected a mapping")
+        try:
+            encoder = make_encoder(ck.encoder["name"], config)
+        except TypeError as e:
+            raise CheckpointError(
+                f"{path}: checkpoint metadata: encoder {ck.encoder['name']!r}: {e}"
+            ) from None
+        except ValueError as e:  # SceneError: an unknown encoder, or options it refuses
+            raise CheckpointError(f"{path}: checkpoint metadata: {e}") from None
     if encoder.dim != cfg.feat_dim:
         raise CheckpointError(
             f"{path}: encoder {encoder.name!r} makes {encoder.dim}-vectors, the model expects {cfg.feat_dim}"

@@ -17,9 +17,15 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from ..errors import ConfigError, check_number
+
 __all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation"]
 
 Activation = Literal["silu", "softplus", "leaky_relu"]
+
+
+MAX_WIDTH = 8192  # the widest layer a checkpoint may declare (the defaults are 32)
+MAX_LAYERS = 64
 
 
 @dataclass
@@ -42,6 +48,26 @@ class EnergyConfig:
     # round disks' headings ignored: an edge from a round object carries only the distance, and an edge
     # touching one no relative heading (False: checkpoints before it; training turns it on)
     round_invariant: bool = False
+
+    def __post_init__(self) -> None:
+        own = "EnergyConfig"
+        for name in ("feat_dim", "embed_dim", "hidden", "layers"):
+            check_number(own, name, getattr(self, name), 1, MAX_WIDTH, integer=True)
+        if self.edge_hidden is not None:
+            check_number(own, "edge_hidden", self.edge_hidden, 1, MAX_WIDTH, integer=True)
+        check_number(own, "layers", self.layers, 1, MAX_LAYERS, integer=True)
+        check_number(own, "length_scale", self.length_scale, 0, open_lo=True)
+        if self.edge_range is not None:
+            check_number(own, "edge_range", self.edge_range, 0, open_lo=True)
+        if self.message not in ("mlp", "linear"):
+            raise ConfigError(f"{own}: message: expected 'mlp' or 'linear', got {self.message!r}")
+        if self.activation not in ("silu", "softplus", "leaky_relu"):
+            raise ConfigError(
+                f"{own}: activation: expected 'silu', 'softplus' or 'leaky_relu', got {self.activation!r}"
+            )
+        for name in ("absolute", "walls", "round_invariant"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{own}: {name}: expected true or false, got {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -160,3 +160,66 @@ def test_round_invariant_gradcheck_float64():
     x[1, 3, :2] = x[1, 0, :2]  # a bowl on its plate's centre: two round objects at one point
     x.requires_grad_(True)
     assert torch.autograd.gradcheck(fn, (x,), eps=1e-6, atol=1e-6)
+
+
+def _tamper(path, meta_edit=None, tensor_edit=None):
+    """Rewrite a checkpoint with its metadata or tensors changed (as a hostile or damaged file would be)."""
+    import json
+
+    from safetensors import safe_open
+    from safetensors.torch import save_file
+
+    with safe_open(str(path), "pt") as f:
+        meta, tensors = f.metadata(), {k: f.get_tensor(k) for k in f.keys()}
+    if meta_edit:
+        for key, edit in meta_edit.items():
+            value = json.loads(meta[key])
+            meta[key] = json.dumps(edit(value))
+    if tensor_edit:
+        tensor_edit(tensors)
+    save_file(tensors, str(path), metadata=meta)
+
+
+def _set(d, **kw):
+    return {**d, **kw}
+
+
+@pytest.mark.parametrize(
+    "meta_edit, needle",
+    [
+        ({"energy_config": lambda c: _set(c, hidden=-3)}, "hidden"),
+        ({"energy_config": lambda c: _set(c, hidden=200_000)}, "hidden"),
+        ({"energy_config": lambda c: _set(c, hidden=64)}, "do not match"),  # a legal width, other weights
+        ({"energy_config": lambda c: _set(c, layers="three")}, "layers"),
+        ({"energy_config": lambda c: _set(c, length_scale=float("nan"))}, "length_scale"),
+        ({"energy_config": lambda c: _set(c, activation="gelu")}, "activation"),
+        ({"energy_config": lambda c: _set(c, colour="red")}, "colour"),
+        ({"encoder": lambda e: _set(e, name="nonesuch")}, "nonesuch"),
+        ({"encoder": lambda e: _set(e, config={"bogus": 1})}, "bogus"),
+        ({"encoder": lambda e: _set(e, config=[1, 2])}, "encoder config"),
+    ],
+)
+def test_damaged_checkpoint_metadata_is_one_error_naming_the_file(tmp_path, meta_edit, needle):
+    path = tmp_path / "m.ckpt"
+    _model().save(path)
+    _tamper(path, meta_edit=meta_edit)
+    with pytest.raises(CheckpointError) as e:
+        load(path)
+    assert str(path) in str(e.value) and needle in str(e.value)
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_non_finite_weights_are_refused(tmp_path, value):
+    path = tmp_path / "m.ckpt"
+    _model().save(path)
+    name = []
+
+    def poison(t):
+        name.append(sorted(t)[0])
+        t[name[0]] = (
+            t[name[0]].clone().reshape(-1).index_fill(0, torch.tensor([0]), value).reshape(t[name[0]].shape)
+        )
+
+    _tamper(path, tensor_edit=poison)
+    with pytest.raises(CheckpointError, match=f"weight '{name[0]}' holds NaN or infinite"):
+        load(path)
