@@ -12,8 +12,9 @@ conditional distributions that placing a missing object needs. No gradient flows
 from __future__ import annotations
 
 import math
+import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -38,6 +39,10 @@ __all__ = [
     "heldout_loss",
     "split_validation",
     "stands_against_walls",
+    "check_training_data",
+    "require_tensorboard",
+    "summary_writer",
+    "log_validation",
 ]
 
 
@@ -227,6 +232,76 @@ class _ChainBuffer:
         self.age[rows, cols] = 0
 
 
+TENSORBOARD_EXTRA = "TensorBoard logging needs the 'tensorboard' extra: pip install -e '.[tensorboard]'"
+
+
+def require_tensorboard() -> Any:
+    """``torch.utils.tensorboard.SummaryWriter``, or :class:`ConfigError` naming the extra when the
+    tensorboard package is missing."""
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError as e:
+        raise ConfigError(f"{TENSORBOARD_EXTRA} ({e})") from None
+    return SummaryWriter
+
+
+def summary_writer(log_dir: str | os.PathLike) -> Any:
+    """A TensorBoard ``SummaryWriter`` on ``log_dir`` (see :func:`require_tensorboard`)."""
+    return require_tensorboard()(log_dir=str(log_dir), flush_secs=10)
+
+
+def log_validation(log_dir: str | os.PathLike, report: Mapping[str, Any], step: int) -> None:
+    """Add an evaluation's figures (``EvalReport.to_dict()``: the held-out loss, the mean and per-category
+    errors) to the TensorBoard log in ``log_dir`` at ``step`` (the training's last iteration)."""
+    figures: dict[str, Any] = {
+        "validation/heldout_loss": report.get("heldout_loss"),
+        "validation/chance_loss": report.get("chance_loss"),
+        "validation/mean_t_cm": report.get("mean_t_cm"),
+        "validation/mean_R_deg": report.get("mean_R_deg"),
+    }
+    for c in report.get("categories", []):
+        for key in ("t_cm", "R_deg", "baseline_t_cm", "baseline_R_deg"):
+            figures[f"validation/{key}/{c['category']}"] = c.get(key)
+    writer = summary_writer(log_dir)
+    try:
+        for tag, v in figures.items():
+            if isinstance(v, (int, float)) and math.isfinite(v):
+                writer.add_scalar(tag, float(v), step)
+    finally:
+        writer.close()
+
+
+def check_training_data(scenes: Sequence[Scene]) -> None:
+    """Refuse, naming the scene (``file:line`` where it was read from) and the object, example scenes
+    that cannot teach an energy: fewer than two scenes, a scene without objects or with unknown poses,
+    an object whose centre lies far outside the bounds, or data in which no scene has a movable object
+    beside another object (nothing relational to learn)."""
+    if len(scenes) < 2:
+        raise SceneError(f"train: need at least 2 example scenes, got {len(scenes)}")
+    teaches = False
+    for i, s in enumerate(scenes):
+        where = s.label(i)
+        if not s.objects:
+            raise SceneError(f"train: {where}: the scene has no objects")
+        if s.unknown:
+            raise SceneError(f"train: {where}: objects without a pose: {s.unknown}; every pose must be known")
+        (x0, y0), (x1, y1) = s.bounds
+        span = max(x1 - x0, y1 - y0)
+        for o in s.objects:
+            x, y, _ = o.pose  # type: ignore[misc]
+            if not (x0 - span <= x <= x1 + span and y0 - span <= y <= y1 + span):
+                raise SceneError(
+                    f"train: {where}: object {o.name!r} at ({x:g}, {y:g}) lies far outside the bounds "
+                    f"{list(s.bounds[0])} .. {list(s.bounds[1])}; check the units and the bounds"
+                )
+        teaches = teaches or (len(s) >= 2 and any(not o.fixed for o in s.objects))
+    if not teaches:
+        raise SceneError(
+            "train: no example scene has a movable object beside another object, so there is no relation to "
+            "learn (every scene has one object, or every object is fixed)"
+        )
+
+
 def train(
     scenes: Sequence[Scene],
     config: TrainConfig | None = None,
@@ -234,20 +309,35 @@ def train(
     seed: int = 0,
     progress: bool = True,
     validation: Sequence[Scene] = (),
+    log_dir: str | os.PathLike | None = None,
 ) -> ScoreModel:
     """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
 
     ``validation``: held-out scenes (not trained on) whose energies become the trust reference that
     placements are judged against; without them the training scenes' energies are used.
+    ``log_dir``: write a TensorBoard log there, every iteration's loss (``train/loss``, the InfoNCE loss
+    with its regularisers; ``train/infonce`` alone) and learning rate (``train/lr``);
+    :func:`log_validation` adds an evaluation's figures to it.
     """
     cfg = config or TrainConfig()
-    if len(scenes) < 2:
-        raise SceneError(f"train: need at least 2 example scenes, got {len(scenes)}")
-    for i, s in enumerate(scenes):
-        if s.unknown:
-            raise SceneError(
-                f"train: scene {i} has objects without a pose: {s.unknown}; every pose must be known"
-            )
+    check_training_data(scenes)
+    writer = summary_writer(log_dir) if log_dir is not None else None
+    try:
+        return _train(scenes, cfg, encoder, seed, progress, validation, writer)
+    finally:
+        if writer is not None:
+            writer.close()
+
+
+def _train(
+    scenes: Sequence[Scene],
+    cfg: TrainConfig,
+    encoder: Encoder | None,
+    seed: int,
+    progress: bool,
+    validation: Sequence[Scene],
+    writer: Any,
+) -> ScoreModel:
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
     length, far = data_scale(scenes)
@@ -311,7 +401,7 @@ def train(
             pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
             e_pert = model.energy(pert, batch.repeat(cfg.perturbed)).reshape(bs, cfg.perturbed)
             e_neg = torch.cat([e_neg, e_pert], dim=1)
-        loss = infonce_loss(e_pos, e_neg)
+        loss = infonce = infonce_loss(e_pos, e_neg)
         if cfg.energy_reg:
             loss = loss + cfg.energy_reg * (e_pos.pow(2).mean() + e_neg.pow(2).mean())
         if cfg.grad_penalty:
@@ -327,6 +417,10 @@ def train(
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.net.parameters(), 10.0)
         opt.step()
+        if writer is not None:
+            writer.add_scalar("train/loss", loss.item(), it)
+            writer.add_scalar("train/infonce", infonce.item(), it)
+            writer.add_scalar("train/lr", opt.param_groups[0]["lr"], it)
         sched.step()
         history.append(loss.item())
         if it % 20 == 0:

@@ -12,7 +12,7 @@ import os
 import sys
 
 # modules of this package that add sub-commands, in the order --help lists them
-COMMAND_MODULES = ["demo", "data", "evaluate", "place", "experiment", "problems", "heatmap"]
+COMMAND_MODULES = ["demo", "data", "evaluate", "place", "experiment", "problems", "heatmap", "export"]
 
 
 class UserError(Exception):
@@ -48,9 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def add_common(p: argparse.ArgumentParser, seed: int = 0) -> None:
+def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None = None) -> None:
     """Options every command has."""
-    p.add_argument("--seed", type=int, default=seed, help=f"random seed (default {seed})")
+    p.add_argument("--seed", type=int, default=seed, help=seed_help or f"random seed (default {seed})")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -84,6 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader went away (``scenescore generate --list | head``)
+        sys.stderr.close()
+        return 0
     return int(rc or 0)
 
 

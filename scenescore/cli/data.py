@@ -22,7 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--images", type=Path, default=None, help="also render top-down images (and a JSON per image) here"
     )
-    p.add_argument("--ppm", type=float, default=None, help="image resolution in pixels per metre")
+    p.add_argument(
+        "--ppm", type=float, default=None, help="image resolution in pixels per metre (default 500)"
+    )
     p.add_argument("--list", action="store_true", help="list the scenarios and exit")
     add_common(p)
     p.set_defaults(func=run_generate)
@@ -37,19 +39,35 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("data", type=Path, help=".jsonl of scenes, or a folder of images")
     p.add_argument("--out", type=Path, required=True, help="checkpoint to write (safetensors)")
+    p.add_argument("--iterations", type=int, default=None, help="training iterations (default 600)")
+    p.add_argument("--negatives", type=int, default=None, help="counter-examples per scene (default 16)")
     p.add_argument(
-        "--iterations", type=int, default=None, help="training iterations (default from TrainConfig)"
+        "--activation",
+        choices=["silu", "softplus", "leaky_relu"],
+        default=None,
+        help="the network's activation (default silu)",
     )
-    p.add_argument("--negatives", type=int, default=None, help="counter-examples per scene")
-    p.add_argument("--activation", choices=["silu", "softplus", "leaky_relu"], default=None)
-    p.add_argument("--message", choices=["mlp", "linear"], default=None, help="message function f")
+    p.add_argument(
+        "--message",
+        choices=["mlp", "linear"],
+        default=None,
+        help="message function f: an MLP or the paper's single linear layer (default mlp)",
+    )
     p.add_argument("--absolute", action="store_true", help="the Abs ablation: absolute poses, no edges")
     p.add_argument(
         "--encoder",
         default=None,
-        help="semantic encoder: footprint (default for .jsonl), image (default for a folder), clip",
+        help=(
+            "semantic encoder: footprint (default for .jsonl), image (default for a folder), "
+            "efficientnet (ImageNet EfficientNet-Lite0; the 'pretrained' extra), clip"
+        ),
     )
-    p.add_argument("--ppm", type=float, default=None, help="pixels per metre of the images (folder input)")
+    p.add_argument(
+        "--ppm",
+        type=float,
+        default=None,
+        help="pixels per metre of the images (folder input; default: from the folder's dataset.json)",
+    )
     p.add_argument(
         "--val",
         type=float,
@@ -68,16 +86,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--plot", type=Path, default=None, help="draw the learning curve and held-out placements here"
     )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="write the checkpoint even when the loss never fell below chance (a model that learned nothing)",
+    )
+    p.add_argument(
+        "--log-dir",
+        type=Path,
+        default=None,
+        help="write a TensorBoard log to this folder: the loss and learning rate of every iteration, then "
+        "the held-out figures (needs the 'tensorboard' extra)",
+    )
     add_common(p)
     p.set_defaults(func=run_train)
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    from ..scenarios import available, get
+    from ..scenarios import available, describe, get
     from ..scene import write_jsonl
 
     if args.list or not args.scenario:
-        print("\n".join(available()))
+        names = available()
+        width = max(len(n) for n in names)
+        print("\n".join(f"{n:{width}s}  {describe(n)}" for n in names))
         return 0
     if args.out is None and args.images is None:
         raise UserError("give --out FILE.jsonl and/or --images DIR")
@@ -104,11 +136,17 @@ def run_train(args: argparse.Namespace) -> int:
     from ..evaluation import evaluate
     from ..plot import training_figure
     from ..scene import atomic_write_text, read_jsonl, write_jsonl
-    from ..training import TrainConfig, split_validation, train
+    from ..training import TrainConfig, check_training_data, split_validation, train
 
     # settings first: a bad value fails before any data is read or any training is done
     given = {"iterations": args.iterations, "negatives": args.negatives}
     cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
+    if args.log_dir is not None:
+        from ..scene import check_output_path
+        from ..training import require_tensorboard
+
+        check_output_path(args.log_dir, "--log-dir", folder=True)
+        require_tensorboard()
     encoder = make_encoder(args.encoder or ("image" if args.data.is_dir() else "footprint"))
     if args.data.is_dir():
         from ..vision import scenes_from_image_folder
@@ -119,6 +157,7 @@ def run_train(args: argparse.Namespace) -> int:
         scenes = read_jsonl(args.data)
     else:
         raise UserError(f"{args.data}: no such file or folder")
+    check_training_data(scenes)
     model_kw = {k: v for k, v in {"activation": args.activation, "message": args.message}.items() if v}
     if args.absolute:
         model_kw["absolute"] = True
@@ -136,16 +175,34 @@ def run_train(args: argparse.Namespace) -> int:
         train_s, held = scenes, []
     else:
         train_s, held = split_validation(scenes, args.val, seed=args.seed)
-    model = train(train_s, cfg, encoder=encoder, seed=args.seed, progress=not args.quiet, validation=held)
+    model = train(
+        train_s,
+        cfg,
+        encoder=encoder,
+        seed=args.seed,
+        progress=not args.quiet,
+        validation=held,
+        log_dir=args.log_dir,
+    )
     info = model.info
     print(
         f"trained on {info['scenes']} scenes in {info['seconds']:.0f} s "
         f"(final loss {info['final_loss']:.3f}, chance {info['chance_loss']:.3f})"
     )
+    if not info["final_loss"] < info["chance_loss"] and not args.force:
+        raise UserError(
+            f"the training loss ({info['final_loss']:.3f}) never fell below chance ({info['chance_loss']:.3f}): "
+            f"the model learned nothing, so {args.out} was not written; train longer (--iterations) or "
+            "pass --force to write it anyway"
+        )
     report: dict = {"checkpoint": str(args.out), "training": {k: v for k, v in info.items() if k != "trust"}}
     if held:
         ev = evaluate(model, held, train_s, seed=args.seed, progress=not args.quiet)
         model.info["validation"] = report["validation"] = ev.to_dict()
+        if args.log_dir is not None:
+            from ..training import log_validation
+
+            log_validation(args.log_dir, ev.to_dict(), cfg.iterations - 1)
         print(f"\nleave-one-object-out on {len(held)} held-out scenes (seed {args.seed}):\n{ev.table()}")
         if args.val_data is None:
             held_file = args.out.with_name(args.out.stem + ".val.jsonl")

@@ -27,8 +27,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("name", choices=EXPERIMENTS + ["all"], help="which experiment")
     p.add_argument("--seeds", type=int, default=3, help="seeds to average over (default 3)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/experiment-NAME)")
-    p.add_argument("--methods", default=None, help="comma-separated subset of the methods")
-    p.add_argument("--scenarios", default=None, help="zoo: comma-separated subset of the zoo's scenarios")
+    p.add_argument(
+        "--methods",
+        default=None,
+        help="comma-separated subset of the methods (default all). missing: "
+        "NeatNet, Nearest-Nbr, SceneScore-Abs, 'SceneScore (LeakyReLU)', SceneScore, Oracle; novel: "
+        "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>osqp)', "
+        "'SceneScore (langevin>casadi)'",
+    )
+    p.add_argument(
+        "--scenarios",
+        default=None,
+        help="zoo: comma-separated subset of the zoo's scenarios (default all ten)",
+    )
     p.add_argument(
         "--jobs",
         type=int,
@@ -46,7 +57,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--from-images",
         action="store_true",
-        help="missing: build every graph from rendered images (detection, moments, crops)",
+        help="missing, novel: build every graph from rendered images (detection, moments, crops)",
+    )
+    p.add_argument(
+        "--encoders",
+        default=None,
+        help=(
+            "novel: comma-separated semantic encoders, one SceneScore row each, from footprint, image, "
+            "efficientnet (the 'pretrained' extra), clip (its weights in SCENESCORE_CLIP_WEIGHTS) "
+            "(default with --from-images: footprint,image, with efficientnet where installed and clip where "
+            "its weights are set; default without: the one SceneScore row, footprint encoder)"
+        ),
     )
     add_common(p)
     p.set_defaults(func=run)
@@ -99,6 +120,7 @@ def _methods(args: argparse.Namespace) -> list[str] | None:
 
 def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import missing
+    from ..experiments.report import over_seeds
 
     scenes_fn, encoder = None, None
     if args.from_images:
@@ -125,21 +147,68 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     )
     md += (
         "Position error t in cm, orientation error R in degrees (none for the symmetric bowl); "
-        f"mean ± std over {args.seeds} seed(s); the paper's figures in brackets.\n\n"
+        f"{over_seeds(args.seeds)}; the paper's figures in brackets.\n\n"
     )
     md += missing.format_missing(res)
     return md, res.rows()
 
 
-def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
-    from ..experiments import novel
+def _encoder_names(args: argparse.Namespace) -> list[str] | None:
+    """``--encoders`` as a list, checked (``None``: not given)."""
+    if not args.encoders:
+        return None
+    from ..encoders import available_encoders
 
-    res = novel.run(seeds=args.seeds, methods=_methods(args), quick=args.quick, progress=not args.quiet)
-    md = "## Table 2: novel objects (ordered rows of cutlery)\n\n"
+    names = [n.strip() for n in args.encoders.split(",") if n.strip()]
+    unknown = [n for n in names if n not in available_encoders()]
+    if unknown or not names:
+        raise UserError(
+            f"--encoders: unknown {unknown or args.encoders!r}; choose from {available_encoders()}"
+        )
+    if len(set(names)) != len(names):
+        raise UserError(f"--encoders: each encoder once, got {args.encoders!r}")
+    return names
+
+
+def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
+    from ..encoders import make_encoder
+    from ..experiments import novel
+    from ..experiments.report import over_seeds
+
+    names = _encoder_names(args)
+    if names is None and args.from_images:
+        names = novel.default_encoders(print if not args.quiet else lambda s: None)
+    encoders = [make_encoder(n) for n in names] if names else None
+    scenes_fn = None
+    if args.from_images:
+        from ..vision import graphs_from_renders
+
+        def scenes_fn(train, test, encoder):
+            return graphs_from_renders(train, encoder=encoder), graphs_from_renders(test, encoder=encoder)
+
+    res = novel.run(
+        seeds=args.seeds,
+        methods=_methods(args),
+        quick=args.quick,
+        progress=not args.quiet,
+        encoders=encoders,
+        scenes_fn=scenes_fn,
+    )
+    md = (
+        "## Table 2: novel objects (ordered rows of cutlery)"
+        + (" (graphs from rendered images)" if args.from_images else "")
+        + "\n\n"
+    )
     md += (
         "Mean position error in cm of a removed piece of cutlery, per ordering rule; test sizes never "
-        f"seen in training; mean ± std over {args.seeds} seed(s); the paper's figures in brackets.\n\n"
+        f"seen in training; {over_seeds(args.seeds)}; the paper's figures in brackets.\n\n"
     )
+    if encoders and any(r.method.startswith("SceneScore (") for r in res.rows()):
+        md += (
+            "One SceneScore row per semantic encoder: "
+            + ", ".join(f"{e.name} ({e.dim} numbers)" for e in encoders)
+            + ".\n\n"
+        )
     md += novel.format_novel(res)
     return md, res.rows()
 

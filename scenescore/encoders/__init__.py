@@ -4,6 +4,11 @@ An :class:`Encoder` turns one :class:`~scenescore.scene.SceneObject` into a fixe
 energy model passes that vector through a trained 2-layer MLP and appends the scale descriptor
 (the footprint's length and width). Encoders are registered by name so that a checkpoint can
 rebuild the one it was trained with (:func:`make_encoder`).
+
+Built in: ``footprint`` (the default: shape, size and colour read from the footprint), ``image``
+(shape and colour descriptors of the rectified crop, no weights), ``efficientnet`` (ImageNet
+EfficientNet-Lite0 features of the crop; the ``pretrained`` extra) and ``clip`` (CLIP embeddings of
+the crop; the ``clip`` extra and local weights).
 """
 
 from __future__ import annotations
@@ -40,7 +45,8 @@ class Encoder(Protocol):
 
 
 _REGISTRY: dict[str, Callable[..., Encoder]] = {"footprint": FootprintEncoder}
-_BUILTIN = {"image": ".image", "clip": ".clip"}  # name -> module, imported on first use
+# name -> module, imported on first use
+_BUILTIN = {"image": ".image", "clip": ".clip", "efficientnet": ".efficientnet"}
 
 
 def register_encoder(name: str, factory: Callable[..., Encoder]) -> None:
@@ -57,7 +63,7 @@ def _factory(name: str) -> Callable[..., Encoder] | None:
     """The factory registered under ``name``; built-in encoders are imported on first use."""
     if name not in _REGISTRY and name in _BUILTIN:
         mod = importlib.import_module(_BUILTIN[name], __name__)
-        cls = {"image": "ImageEncoder", "clip": "ClipEncoder"}[name]
+        cls = {"image": "ImageEncoder", "clip": "ClipEncoder", "efficientnet": "EfficientNetEncoder"}[name]
         _REGISTRY[name] = getattr(mod, cls)
     return _REGISTRY.get(name)
 

