@@ -1,4 +1,4 @@
-"""``scenescore demo``: the main job end to end, offline, in a few minutes on a laptop CPU.
+"""``scenescore demo``: the main job end to end, offline, in about 3 minutes on a 2-core CPU.
 
 Generates dining-table arrangements, trains the energy on them, removes a bowl, a fork or a knife
 from unseen test scenes, places it back with Langevin on the learned energy, prints the errors next

@@ -44,7 +44,10 @@ def run(args: argparse.Namespace) -> int:
     model = load(args.model)
     xs, ys, e = energy_grid(model, scene, args.object, args.resolution, theta=args.theta)
     mn = grid_minimum(xs, ys, e)
-    draw_heatmap(scene, args.object, xs, ys, e, mn, args.out, f"energy over {args.object}'s position")
+    pose = scene[args.object].pose  # the scene's own pose of the object, when it gives one
+    truth = None if pose is None else (pose[0], pose[1])
+    title = f"energy over {args.object}'s position (heading {args.theta:+.2f} rad)"
+    draw_heatmap(scene, args.object, xs, ys, e, mn, args.out, title, truth, "its pose in the scene")
     print(f"minimum at x={mn[0]:+.3f} m  y={mn[1]:+.3f} m  (energy {float(e.min()):.3f})")
     print(f"wrote {args.out}")
     return 0

@@ -22,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", help="write the result as JSON here")
     p.add_argument("--scene-out", help="write the solved scene as JSON here")
     p.add_argument("--plot", help="draw the solved scene to this PNG")
-    add_common(p, seed=-1)
+    add_common(p, seed=-1, seed_help="random seed (default -1: the problem file's own seed)")
     p.set_defaults(func=run_solve)
 
     c = sub.add_parser(
@@ -65,49 +65,10 @@ def run_solve(args: argparse.Namespace) -> int:
     if args.scene_out:
         r.scene.to_json(args.scene_out)
     if args.plot:
-        _plot(r, args.plot)
+        from ..plot import plot_result
+
+        plot_result(r, args.plot)
     return 0 if r.success else 1
-
-
-def _plot(result, path: str) -> None:
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Polygon
-
-    from ..geometry import footprint_core
-    from ..scene import atomic_write_bytes
-
-    scene = result.scene
-    fig, ax = plt.subplots(figsize=(5, 5))
-    (x0, y0), (x1, y1) = scene.bounds
-    ax.add_patch(Polygon([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], fill=False, ls="--", color="0.5"))
-    for o in scene.objects:
-        col = [c / 255 for c in o.color]
-        core, r = footprint_core(o)
-        if len(core) == 1:
-            ax.add_patch(Circle(o.pose[:2], r, color=col, ec="k", alpha=0.8 if not o.fixed else 0.4))
-        else:
-            ax.add_patch(
-                Polygon(
-                    o.world_polygon() if o.shape_kind != "polygon" else o.world_polygon(),
-                    color=col,
-                    ec="k",
-                    alpha=0.8 if not o.fixed else 0.4,
-                )
-            )
-        ax.annotate(o.name, o.pose[:2], fontsize=7, ha="center")
-    ax.set_xlim(x0 - 0.05, x1 + 0.05)
-    ax.set_ylim(y0 - 0.05, y1 + 0.05)
-    ax.set_aspect("equal")
-    ax.set_title(f"{result.solver}: {result.status}, objective {result.objective:.4g}")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
 
 
 def _solver_list(text: str) -> list[str]:

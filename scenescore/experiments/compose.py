@@ -60,7 +60,8 @@ class ComposeResult:
             d = np.asarray(self.distinct[m], dtype=float)
             for k, n in enumerate(self.levels):
                 fig[f"correct_at_{n}_objects"] = float(a[:, k].mean())
-                fig[f"correct_at_{n}_objects_std"] = float(a[:, k].std())
+                if len(a) > 1:  # no spread from one seed
+                    fig[f"correct_at_{n}_objects_std"] = float(a[:, k].std())
                 fig[f"distinct_at_{n}_objects"] = float(d[:, k].mean())
             fig["seconds"] = self.seconds.get(m, 0.0)
             fig["samples"] = float(self.samples if m not in CHAINS else self.refine)

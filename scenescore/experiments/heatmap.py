@@ -21,7 +21,7 @@ from ..heatmap import energy_grid, grid_minimum
 from ..plot import draw_heatmap
 from ..scenarios import DeskScenario
 from ..training import TrainConfig, train
-from .report import Row, format_table
+from .report import Row, format_table, over_seeds
 
 __all__ = ["run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES"]
 
@@ -43,7 +43,8 @@ class HeatmapResult:
                 if key.startswith(f"{tool}_"):
                     short = key[len(tool) + 1 :]
                     fig[short] = float(np.mean([r[key] for r in self.per_seed]))
-                    fig[f"{short}_std"] = float(np.std([r[key] for r in self.per_seed]))
+                    if len(self.per_seed) > 1:  # no spread from one seed
+                        fig[f"{short}_std"] = float(np.std([r[key] for r in self.per_seed]))
             fig["seconds"] = self.seconds
             rows.append(Row(f"SceneScore, {tool}", fig))
         return rows
@@ -113,7 +114,7 @@ def format_heatmap(res: HeatmapResult) -> str:
     )
     md += (
         f"; the grid's minimum's distance per pen distance, its mean error against the relation, and "
-        f"(pencil) the minimum's distance from the pen's; mean ± std over {len(res.per_seed)} seed(s).\n\n"
+        f"(pencil) the minimum's distance from the pen's; {over_seeds(len(res.per_seed))}.\n\n"
     )
     md += format_table(res.rows(), cols, std={k: f"{k}_std" for k, _ in cols})
     if res.figures:

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..scene import atomic_write_text
 
-__all__ = ["Row", "SeedResults", "format_table", "write_results"]
+__all__ = ["Row", "SeedResults", "format_table", "over_seeds", "write_results"]
 
 
 @dataclass
@@ -47,7 +47,7 @@ class SeedResults:
         rows = []
         for method, runs in self.per_seed.items():
             fig = {k: float(np.mean([r[k] for r in runs])) for k in runs[0]}
-            for k in self.spread if self.spread is not None else list(runs[0]):
+            for k in (self.spread if self.spread is not None else list(runs[0])) if len(runs) > 1 else ():
                 fig[f"{k}_std"] = float(np.std([r[k] for r in runs]))
             fig["seconds"] = self.seconds.get(method, 0.0)
             rows.append(Row(method, fig, self.paper.get(method, {})))
@@ -62,6 +62,11 @@ def _fmt(v: float | str | None, digits: int = 2) -> str:
     if isinstance(v, int) and not isinstance(v, bool):
         return str(v)
     return f"{v:.{digits}f}"
+
+
+def over_seeds(n: int) -> str:
+    """How a table's figures aggregate seeds: ``mean ± std over n seeds``, or one seed's figures."""
+    return f"mean ± std over {n} seeds" if n > 1 else "one seed, so no spread"
 
 
 def format_table(

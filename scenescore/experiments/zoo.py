@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from ..evaluation import MissingCase, case_errors
 from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
@@ -115,9 +116,11 @@ def run_one(
     model = train(train_s, config or TrainConfig(), seed=seed, progress=progress)
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
-    placed = []
-    for k in range(0, len(cases), 8):
-        placed += place_many(model, [c.scene for c in cases[k : k + 8]], PLACE, seed + k, energy_only)
+    placed: list[Scene] = []
+    with tqdm(total=len(cases), desc=f"{name}: place", unit="case", disable=not progress) as bar:
+        for k in range(0, len(cases), 8):
+            placed += place_many(model, [c.scene for c in cases[k : k + 8]], PLACE, seed + k, energy_only)
+            bar.update(len(cases[k : k + 8]))
     # the energy at each placement and at its truth: a placement with the higher of the two is a
     # failure of the search; with the lower, the learned energy prefers the wrong pose
     truths = [p.with_poses([c.truth], [c.name]) for c, p in zip(cases, placed)]

@@ -29,6 +29,7 @@ __all__ = [
     "register",
     "get",
     "available",
+    "describe",
     "DiningScenario",
     "OrderingScenario",
     "TVScenario",
@@ -84,6 +85,14 @@ def register(name: str, factory: Callable[..., Any]) -> None:
 
 def available() -> list[str]:
     return sorted(_REGISTRY)
+
+
+def describe(name: str) -> str:
+    """One line on what the scenario ``name`` generates: its docstring's first sentence."""
+    if name not in _REGISTRY:
+        raise SceneError(f"unknown scenario {name!r}; available: {', '.join(available())}")
+    doc = " ".join((_REGISTRY[name].__doc__ or "").split("\n\n")[0].split())
+    return doc.split(". ")[0].rstrip(".") + "." if doc else ""
 
 
 def get(name: str, **options: Any) -> Any:

@@ -127,7 +127,7 @@ def compare(
                 "objective": float(np.median([r.objective for r in res])) if res else None,
                 "terms": {t: float(np.median([r.terms[t]["weighted"] for r in res])) for t in names},
                 "max_violation": float(worst.max_violation) if worst else None,
-                "violated": worst.violated if worst and worst.max_violation > 0 else None,
+                "violated": worst.violated if worst else None,
                 "time_median": float(np.median(times)) if res else None,
                 "time_p90": float(np.percentile(times, 90)) if res else None,
                 "statuses": {st: sum(r.status == st for r in res) for st in sorted({r.status for r in res})},

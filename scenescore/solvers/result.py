@@ -180,7 +180,11 @@ def make_result(
     pose_np = np.asarray(x[0].detach(), dtype=float)
     confidence = {k: v for _, c in problem.cost for k, v in c.assess(pose_np).items()}
     success = status.ok and max_v <= tol and math.isfinite(objective)
-    if max_v > tol:
+    if status == Status.CONVERGED and max_v > tol:
+        status = Status.INFEASIBLE  # a status never says converged beside a violated constraint
+    if max_v <= tol:
+        violated = None  # a term is named as violated only above the tolerance
+    else:
         message = (
             message + "; " if message else ""
         ) + f"largest violation: {violated} by {max_v * 1000:.3g} mm"

@@ -215,7 +215,13 @@ class OSQPSolver(StageSolver):
                 if trust < o.trust_min:
                     ok = g.size == 0 or g.min() >= -FEASIBILITY_TOL
                     status = Status.CONVERGED if ok else Status.INFEASIBLE
-                    msg = "trust region collapsed" + ("" if ok else " with constraints violated")
+                    msg = (
+                        "converged: no step improves the merit function (the trust region fell below "
+                        f"{o.trust_min:g})"
+                        if ok
+                        else "stopped infeasible: the trust region fell below "
+                        f"{o.trust_min:g} with constraints still violated"
+                    )
                     break
         t2 = time.perf_counter()
         if status == Status.MAX_ITERATIONS:

@@ -22,7 +22,7 @@ from ..encoders import Encoder
 from ..scene import Bounds, Scene, SceneError, SceneObject
 from .crop import rectify_crop
 from .pose import MomentPose, angle_error, pose_from_mask
-from .render import DEFAULT_PPM, image_shape, read_image, render_scene
+from .render import DEFAULT_PPM, MASK_PREVIEW, image_shape, read_image, render_scene
 from .segment import ClassicalDetector, Detector, as_detections
 
 __all__ = [
@@ -240,7 +240,7 @@ def scenes_from_image_folder(
     detector: Detector | None = None,
     progress: bool = False,
 ) -> list[Scene]:
-    """Scene graphs from every ``*.png`` in ``folder`` (sorted by name; ``*.masks.png`` skipped).
+    """Scene graphs from every ``*.png`` in ``folder`` (sorted by name; ``*.masks.png`` and their previews skipped).
 
     The ppm and bounds of an image come from its sidecar JSON (``scene_00000.json`` beside
     ``scene_00000.png``, as :func:`write_rendered_dataset` writes) or ``dataset.json``, else from the
@@ -250,7 +250,8 @@ def scenes_from_image_folder(
     folder = Path(folder)
     if not folder.is_dir():
         raise SceneError(f"{folder}: not a folder of images")
-    images = sorted(p for p in folder.glob("*.png") if not p.name.endswith(".masks.png"))
+    skip = (".masks.png", MASK_PREVIEW)  # the mask images and their coloured previews
+    images = sorted(p for p in folder.glob("*.png") if not p.name.endswith(skip))
     if not images:
         raise SceneError(f"{folder}: no .png images in the folder")
     index_ppm = None

@@ -179,6 +179,18 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return cv2.cvtColor(arr, cv2.COLOR_BGR2RGB)
 
 
+MASK_PREVIEW = ".masks-preview.png"  # the coloured view of a 16-bit mask image: not a scene image
+
+
+def mask_preview(labels: np.ndarray, image: np.ndarray) -> np.ndarray:
+    """A 16-bit label image as colours (one per label, the table left grey) over ``image``, RGB uint8."""
+    rng = np.random.default_rng(0)  # fixed colours: the same label looks the same in every preview
+    palette = rng.integers(40, 256, size=(int(labels.max()) + 1, 3)).astype(np.uint8)
+    grey = image.mean(axis=2, keepdims=True).astype(np.uint8).repeat(3, axis=2)
+    out = np.where(labels[..., None] > 0, palette[labels], grey // 2 + 64)
+    return out.astype(np.uint8)
+
+
 def write_rendered_dataset(
     scenes: Sequence[Scene],
     out_dir: str | os.PathLike,
@@ -190,7 +202,8 @@ def write_rendered_dataset(
 
     The JSON is the ground-truth scene with ``meta.image`` (the PNG's file name) and ``meta.ppm``.
     With ``masks``, ``scene_00000.masks.png`` holds the instance masks as a 16-bit label image
-    (0: table, ``k``: the scene's object ``k - 1``). ``dataset.json`` lists the images and the ppm.
+    (0: table, ``k``: the scene's object ``k - 1``; it looks black in an image viewer), and
+    ``scene_00000.masks-preview.png`` the same labels in colours over the image, to look at. ``dataset.json`` lists the images and the ppm.
     Returns the paths of the images written. ``progress``: a progress bar.
     """
     from tqdm.auto import tqdm
@@ -210,6 +223,7 @@ def write_rendered_dataset(
             if not ok:
                 raise SceneError(f"{out / stem}.masks.png: could not encode the masks")
             atomic_write_bytes(out / f"{stem}.masks.png", buf.tobytes())
+            write_image(out / f"{stem}{MASK_PREVIEW}", mask_preview(labels, image))
         gt = scene.copy()
         gt.meta = {**gt.meta, "image": f"{stem}.png", "ppm": float(ppm)}
         gt.to_json(out / f"{stem}.json")
