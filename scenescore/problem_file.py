@@ -33,7 +33,7 @@ from .costs import Cost, CostError, CostSpec, cost_types
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError
 from .solvers import available
-from .textfiles import MAX_DEPTH, check_yaml_tree, read_text
+from .textfiles import MAX_DEPTH, check_yaml_depth, check_yaml_tree, read_text
 
 __all__ = ["ProblemSpec", "load_problem", "LoadedProblem"]
 
@@ -207,6 +207,7 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
         p = Path(path) if path else None
         source, root = str(path or "<problem>"), (p.parent if p else Path.cwd())
     try:
+        check_yaml_depth(text, source, ProblemError)
         node = yaml.compose(text)
         if node is not None:  # bounded before anything expands the aliases
             check_yaml_tree(node, source, ProblemError)

@@ -22,6 +22,7 @@ __all__ = [
     "max_file_bytes",
     "read_text",
     "loads_json",
+    "check_yaml_depth",
     "check_yaml_tree",
 ]
 
@@ -118,6 +119,21 @@ def loads_json(text: str, path: str, error: type[Exception], line: int | None = 
     if _depth(data) > MAX_DEPTH:
         raise error(f"{where}: JSON nested deeper than {MAX_DEPTH} levels; a scene is 4 deep")
     return data
+
+
+def check_yaml_depth(text: str, source: str, error: type[Exception]) -> None:
+    """Refuse YAML nested deeper than :data:`MAX_DEPTH` from its event stream, before any tree is built
+    (building one thousands of levels deep is slow and recursive)."""
+    import yaml
+
+    depth = 0
+    for ev in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise error(f"{source}:{ev.start_mark.line + 1}: YAML nested deeper than {MAX_DEPTH} levels")
+        elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
 
 
 def check_yaml_tree(node: Any, source: str, error: type[Exception]) -> None:

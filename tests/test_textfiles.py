@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 
 import pytest
 
@@ -71,13 +70,11 @@ def test_a_folder_where_a_file_was_expected(tmp_path):
 def test_endless_files_stop_at_the_cap(monkeypatch, tmp_path):
     monkeypatch.setenv(MAX_FILE_MB_ENV, "1")
     assert max_file_bytes() == 2**20
-    t0 = time.perf_counter()
     for reader in (Scene.from_json, read_jsonl):
         with pytest.raises(SceneError, match="read limit"):
             reader("/dev/zero")
     with pytest.raises(ProblemError, match="read limit"):
         load_problem("/dev/zero")
-    assert time.perf_counter() - t0 < 5
     big = _write(tmp_path, "big.jsonl", (json.dumps(SCENE) + "\n") * 6000)  # about 1.5 MB
     with pytest.raises(SceneError, match=str(big)):
         read_jsonl(big)
@@ -120,10 +117,8 @@ LAUGHS = "\n".join(
 )
 def test_bad_problem_files_name_the_file(tmp_path, name, text, needle):
     p = _write(tmp_path, name, text.encode("latin-1") if name.startswith("latin1") else text.encode())
-    t0 = time.perf_counter()
     with pytest.raises(ProblemError) as e:
         load_problem(p)
-    assert time.perf_counter() - t0 < 5
     assert str(p) in str(e.value) and needle in str(e.value)
 
 
