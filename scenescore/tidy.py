@@ -575,7 +575,14 @@ def _buffer(
         pts, detour = pts[ok], detour[ok]
     # what must stay clear: every object where it is now, and the targets still to be reached
     targets = [(m, goal[m]) for m in todo if m != name]
-    for k in np.argsort(detour):
+    # try first the draws whose bounding circle clears every other object's (no exact check rejects them)
+    others = [(before[m].size, p) for m, p in state.items() if m != name and p is not None]
+    others += [(before[m].size, p) for m, p in targets if p is not None]
+    r = 0.5 * math.hypot(*before[name].size)
+    clear = np.ones(len(pts), dtype=bool)
+    for size, p in others:
+        clear &= np.hypot(*(pts - np.array(p[:2])).T) > r + 0.5 * math.hypot(*size)
+    for k in sorted(range(len(pts)), key=lambda k: (not clear[k], detour[k])):
         pose = (float(pts[k, 0]), float(pts[k, 1]), float(heading))
         trial = _state(before, {**state, name: pose})
         if _legal(trial, name, reach) or blocking(trial, name, model):

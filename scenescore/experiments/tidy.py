@@ -31,7 +31,8 @@ from ..placement import place_many
 from ..problem import Problem
 from ..scenarios import get
 from ..scene import Scene, SceneError, wrap_angle
-from ..tidy import EFFORT, TidyError, plan_moves, tidy_many, validate_plan
+from ..solvers.langevin import LangevinOptions
+from ..tidy import EFFORT, TidyError, TidyOptions, plan_moves, tidy_many, validate_plan
 from ..training import TrainConfig, train
 from .report import Row, format_table
 
@@ -73,7 +74,7 @@ def _feasible(scene: Scene, truth: Scene) -> bool:
     """No overlap but those the true scene has (a lamp on its nightstand), every object inside."""
     full = HingeCollision(pairs=[[a, b] for k, a in enumerate(scene.names) for b in scene.names[k + 1 :]])
     allowed = {v.label for v in full.bind(truth, truth.names).check(truth.poses(), 1e-4)}
-    prob = Problem(scene, full + Bounds(), movable=scene.names)
+    prob = Problem(scene, full + Bounds(), movable=[o.name for o in scene.objects if not o.fixed])
     return all(v.label in allowed for v in prob.check(scene.poses()).violations)
 
 
@@ -276,8 +277,11 @@ def run(
     sizes: tuple[float, ...] = SIZES,
     log: Callable[[str], None] = print,
     progress: bool = False,
+    options: TidyOptions | None = None,
+    place_options: LangevinOptions | None = None,
 ) -> TidyRun:
-    """Train per scenario, make the messy cases, run every method on them."""
+    """Train per scenario, make the messy cases, run every method on them (``options``: tidy's,
+    ``place_options``: the baselines' placement; defaults: the library's)."""
     res = TidyRun(efforts=tuple(efforts))
     methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
     for m in methods:
@@ -296,7 +300,7 @@ def run(
         messy = [c.messy for c in cases]
         for e in efforts:
             t = time.perf_counter()
-            results = tidy_many(model, messy, effort=e, seed=seed)
+            results = tidy_many(model, messy, effort=e, seed=seed, options=options)
             res.seconds[method_name(e)] += time.perf_counter() - t
             for c, r in zip(cases, results):
                 out = Outcome(
@@ -315,7 +319,7 @@ def run(
             for o in s.objects:
                 if not o.fixed:
                     o.pose = None
-        placed = place_many(model, blank, seed=seed)
+        placed = place_many(model, blank, place_options, seed=seed)
         res.seconds["re-place all"] += time.perf_counter() - t
         res.outcomes["re-place all"] += [
             _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, placed)
@@ -327,7 +331,7 @@ def run(
             for n in c.displaced:
                 s.objects[s.index(n)].pose = None
             holes.append(s)
-        filled = place_many(model, holes, seed=seed)
+        filled = place_many(model, holes, place_options, seed=seed)
         res.seconds["missing placement"] += time.perf_counter() - t
         res.outcomes["missing placement"] += [
             _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, filled)
@@ -392,8 +396,13 @@ def plot_pareto(res: TidyRun, path: Any) -> None:
     for m, style in (("missing placement", ("s", "C2")), ("re-place all", ("^", "C3"))):
         f = res.figures(m)
         ax.plot([f["ratio"]], [f["accepted"]], style[0], color=style[1], ls="none", label=m)
-    ax.set_xscale("log")
-    ax.set_xlabel("total displacement / put-back displacement (log)")
+    from matplotlib.ticker import NullLocator, ScalarFormatter
+
+    ax.set_xscale("symlog", linthresh=1.0)  # 0 (nothing moved) stays on the chart
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.axvline(1.0, color="0.6", lw=0.8, ls="--")
+    ax.set_xlabel("total displacement / put-back displacement (linear below 1, log above)")
     ax.set_ylabel("accepted by the scenario's check")
     ax.set_ylim(-0.03, 1.03)
     ax.set_title("tidying: desirability against effort", fontsize=9)
