@@ -108,3 +108,24 @@ def test_tidy_reports_moves_targets_and_a_valid_plan():
         tidy(model, scene.without("red"), options=_quick())
     with pytest.raises(TidyError, match="stay: no object named 'green'"):
         tidy(model, scene, stay=["green"], options=_quick())
+
+
+def test_the_cli_writes_the_moves_the_plan_and_the_plot(tmp_path, capsys):
+    from scenescore.cli import main
+    from scenescore.scenarios import DeskScenario
+
+    torch.manual_seed(0)
+    ScoreModel.create(FootprintEncoder(), hidden=8, layers=1).save(tmp_path / "m.ckpt")
+    scene = DeskScenario().arrange((0.0, 0.0, 0.0), 0.2)
+    scene.with_poses([[0.3, 0.25, 0.4]], ["pen"]).to_json(tmp_path / "messy.json")
+    args = [str(tmp_path / "m.ckpt"), str(tmp_path / "messy.json"), "--out", str(tmp_path / "t.json")]
+    rc = main(["tidy", *args, "--plot", str(tmp_path / "t.png"), "--stay", "book", "--quiet"])
+    assert rc == 0
+    out = json.loads((tmp_path / "t.json").read_text())
+    assert out["plan"]["valid"] and not out["objects"]["book"]["moves"]
+    assert (tmp_path / "t.png").stat().st_size > 1000
+    assert "plan:" in capsys.readouterr().out
+    assert main(["tidy", *args, "--reach", "0,0"]) == 2
+    assert "--reach: expected X,Y,R" in capsys.readouterr().err
+    assert main(["tidy", *args, "--stay", "book,pen,mug"]) == 2
+    assert "no object may move" in capsys.readouterr().err
