@@ -7,6 +7,7 @@ from .encoders import Encoder, FootprintEncoder, make_encoder
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError, SceneObject, read_jsonl, write_jsonl
 from .solvers import solve
+from .tidy import tidy  # ss.tidy(model, scene, effort=1.0, seed=0); the module: scenescore.tidy
 
 __version__ = "0.1.0"
 
@@ -25,5 +26,6 @@ __all__ = [
     "Problem",
     "ProblemError",
     "solve",
+    "tidy",
     "scenarios",
 ]

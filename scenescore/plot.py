@@ -15,6 +15,8 @@ from .scene import Scene, atomic_write_bytes
 __all__ = [
     "plot_scene",
     "plot_result",
+    "plot_tidy",
+    "draw_moves",
     "save_figure",
     "draw_scene",
     "legend",
@@ -39,12 +41,17 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
 BOUNDS_FACE = "#c8a77e"
 MOVED_EDGE = "red"
 TRUTH_STYLE = {"fill": False, "ls": "--", "ec": "k", "lw": 1.0}
+BEFORE_STYLE = {"fill": False, "ls": "--", "ec": "0.4", "lw": 1.0}
+BUFFER_STYLE = {"fill": False, "ls": ":", "ec": "tab:orange", "lw": 1.2}
+MOVE_COLOR = "tab:red"
 REACH_STYLE = {"fill": False, "ls": ":", "ec": "tab:blue", "lw": 1.2}
 CLUTTER_FACE = "#9a9a9a"
 LEGEND: dict[str, tuple[str, dict[str, Any]]] = {
     # role -> (label, matplotlib Patch keywords)
     "moved": ("placed", {"facecolor": "white", "edgecolor": MOVED_EDGE, "lw": 2.0}),
     "truth": ("truth", {"facecolor": "none", "edgecolor": "k", "ls": "--"}),
+    "before": ("current pose", {"facecolor": "none", "edgecolor": "0.4", "ls": "--"}),
+    "buffer": ("buffer pose", {"facecolor": "none", "edgecolor": "tab:orange", "ls": ":"}),
     "fixed": ("fixed", {"facecolor": "white", "edgecolor": "k", "hatch": "///"}),
     "clutter": ("clutter", {"facecolor": CLUTTER_FACE, "edgecolor": "k", "hatch": "xx"}),
     "bounds": ("bounds", {"facecolor": BOUNDS_FACE, "alpha": 0.35, "edgecolor": "none"}),
@@ -59,12 +66,14 @@ def draw_scene(
     ghosts: Scene | None = None,
     reach: Sequence[tuple[tuple[float, float], float]] = (),
     names: str = "highlight",
+    ghost_role: str = "truth",
 ) -> list[str]:
     """Draw ``scene`` on a matplotlib axis in metres; returns the legend roles drawn (see :func:`legend`).
 
     ``highlight``: the moved objects, outlined in red and named; ``ghosts``: a scene whose poses of the
-    highlighted objects are drawn dashed (the truth); ``reach``: ``((x, y), radius)`` circles;
-    ``names``: ``"highlight"`` names the highlighted objects, ``"all"`` every object.
+    highlighted objects are drawn dashed (``ghost_role``: ``"truth"``, or ``"before"``: the current
+    poses of a tidy); ``reach``: ``((x, y), radius)`` circles; ``names``: ``"highlight"`` names the
+    highlighted objects, ``"all"`` every object.
     """
     from matplotlib.patches import Circle, Polygon, Rectangle
 
@@ -72,10 +81,11 @@ def draw_scene(
     (x0, y0), (x1, y1) = scene.bounds
     ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=BOUNDS_FACE, edgecolor="none", alpha=0.35))
     if ghosts is not None:
+        style = BEFORE_STYLE if ghost_role == "before" else TRUTH_STYLE
         for o in ghosts.objects:
             if o.name in highlight and o.pose is not None:
-                ax.add_patch(Polygon(o.world_polygon(), closed=True, **TRUTH_STYLE))
-                roles.append("truth")
+                ax.add_patch(Polygon(o.world_polygon(), closed=True, **style))
+                roles.append(ghost_role)
     for o in scene.objects:
         if o.pose is None:
             continue
@@ -195,6 +205,73 @@ def plot_result(result: Any, path: str | os.PathLike) -> None:
     if not result.feasible and result.violated:
         title += f"\nviolated: {result.violated}"
     plot_scene(result.scene, path, moving, title, reach=reach, names="all", moved="moved")
+
+
+def draw_moves(ax, before: Scene, steps: Sequence[Any]) -> list[str]:
+    """Each pick-and-place of a plan (``object``, ``start``, ``goal``, ``buffer``) as an arrow from
+    where the object is to where it goes, numbered in order; buffer poses drawn dotted. Returns roles."""
+    from matplotlib.patches import Polygon
+
+    roles: list[str] = []
+    for k, s in enumerate(steps, start=1):
+        if s.start is None:
+            continue
+        (x0, y0), (x1, y1) = s.start[:2], s.goal[:2]
+        ax.annotate(
+            "",
+            xy=(x1, y1),
+            xytext=(x0, y0),
+            arrowprops={
+                "arrowstyle": "-|>",
+                "color": "tab:orange" if s.buffer else MOVE_COLOR,
+                "lw": 1.4,
+                "ls": ":" if s.buffer else "-",
+                "shrinkA": 0,
+                "shrinkB": 0,
+            },
+        )
+        ax.annotate(
+            str(k),
+            ((x0 + x1) / 2, (y0 + y1) / 2),
+            fontsize=7,
+            ha="center",
+            va="center",
+            color="white",
+            bbox={"boxstyle": "circle,pad=0.2", "fc": "tab:orange" if s.buffer else MOVE_COLOR, "ec": "none"},
+        )
+        if s.buffer:
+            ax.add_patch(Polygon(before[s.name].world_polygon(s.goal), closed=True, **BUFFER_STYLE))
+            roles.append("buffer")
+    return roles
+
+
+def plot_tidy(
+    result: Any, path: str | os.PathLike, reach: Sequence[tuple[tuple[float, float], float]] = ()
+) -> None:
+    """A :class:`~scenescore.tidy.TidyResult`: the tidy scene, moved objects outlined and named, their
+    current poses dashed, and numbered arrows for the plan's pick-and-places (buffer moves dotted)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    fig, ax = plt.subplots(figsize=(5, 5.6))
+    roles = draw_scene(ax, result.after, result.moved, ghosts=result.before, reach=reach, ghost_role="before")
+    roles += draw_moves(ax, result.before, result.steps)
+    extra = [Line2D([], [], color=MOVE_COLOR, lw=1.4, marker=">", ms=4, label="move (step number)")]
+    legend(ax, list(dict.fromkeys(roles)), extra, moved="moved, at its target")
+    moved = len(result.moved)
+    title = (
+        f"tidy (effort {result.effort:g}): {moved} object{'s' * (moved != 1)} moved, "
+        f"{result.total_displacement:.2f} m in all, {len(result.steps)} step{'s' * (len(result.steps) != 1)}"
+    )
+    if result.buffers:
+        title += f" ({result.buffers} via a buffer)"
+    if not result.check.valid:
+        title += "\nplan not valid: " + result.check.describe()[:80]
+    ax.set_title(title, fontsize=9)
+    save_figure(fig, path)
 
 
 def _error_cm(case: Any, pred: Scene) -> float:

@@ -30,6 +30,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.problem_file", 9),
     ("scenescore.training", 10),
     ("scenescore.placement", 10),
+    ("scenescore.tidy", 10),  # tidying a messy scene: effort, pruning, the pick-and-place plan
     ("scenescore.evaluation", 10),
     ("scenescore.heatmap", 10),
     ("scenescore.plot", 10),

@@ -82,7 +82,16 @@ def test_session_and_python_snippets_run(tmp_path, capsys):
                 ["bash", "-o", "pipefail", "-c", line], cwd=tmp_path, env=env, capture_output=True, text=True
             )
             assert r.returncode == 0, f"README line failed: {line}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
-    for name in ("model.ckpt", "filled.json", "filled.png", "heat.png", "result.json", "solved.png"):
+    for name in (
+        "model.ckpt",
+        "filled.json",
+        "filled.png",
+        "tidy.json",
+        "tidy.png",
+        "heat.png",
+        "result.json",
+        "solved.png",
+    ):
         assert (tmp_path / name).is_file(), name
     cwd = os.getcwd()
     os.chdir(tmp_path)

@@ -12,7 +12,7 @@ import os
 import sys
 
 # modules of this package that add sub-commands, in the order --help lists them
-COMMAND_MODULES = ["demo", "data", "evaluate", "place", "experiment", "problems", "heatmap", "export"]
+COMMAND_MODULES = ["demo", "data", "evaluate", "place", "tidy", "experiment", "problems", "heatmap", "export"]
 
 
 class UserError(Exception):

@@ -28,11 +28,13 @@ from .collision import HingeCollision
 from .bounds import Bounds
 from .reach import ReachLimit
 from .target import PoseTarget
+from .effort import Anchor, Displacement, EffortTerm, MoveCount
 from .function import CostFn
 
 # isort: on
 
 __all__ = [
+    "Anchor",
     "Binding",
     "Bounds",
     "ConstraintCost",
@@ -40,8 +42,11 @@ __all__ = [
     "CostError",
     "CostFn",
     "CostSpec",
+    "Displacement",
+    "EffortTerm",
     "HingeCollision",
     "LearnedEnergy",
+    "MoveCount",
     "PoseTarget",
     "ReachLimit",
     "SpecContext",

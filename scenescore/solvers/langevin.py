@@ -93,15 +93,21 @@ class LangevinSolver(StageSolver):
         pool), one for small ones."""
         return torch.get_num_threads() if self.options.particles >= 256 else 1
 
-    def solve_many(self, problems: Sequence[Problem], seed: int = 0) -> list[Result]:
+    def solve_many(
+        self, problems: Sequence[Problem], seed: int = 0, init: Sequence[Tensor] | None = None
+    ) -> list[Result]:
         """Several problems with the same number of objects in one batched chain (particles in contiguous
         groups, one per problem): the same answers in distribution as solving each, in far fewer, larger
-        tensor operations."""
+        tensor operations. ``init``: each problem's own starting particles ``(B_k, N, 3)``."""
         if not problems:
             return []
+        if init is not None and len(init) != len(problems):
+            raise ProblemError(
+                f"langevin: init: expected {len(problems)} starts, one per problem, got {len(init)}"
+            )
         n = self.options.threads if self.options.threads is not None else self.default_threads(problems[0])
         with torch_threads(n) as used:
-            out = self._run(list(problems), None, seed)
+            out = self._run(list(problems), None if init is None else list(init), seed)
         for r in out:
             r.threads = used
         return out
@@ -109,7 +115,7 @@ class LangevinSolver(StageSolver):
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         return self._run([problem], init, seed)[0]
 
-    def _run(self, problems: list[Problem], init: Tensor | None, seed: int) -> list[Result]:
+    def _run(self, problems: list[Problem], init: Tensor | list[Tensor] | None, seed: int) -> list[Result]:
         o, cfg = self.options, self.options.chain
         t0 = time.perf_counter()
         n = problems[0].n
@@ -117,8 +123,10 @@ class LangevinSolver(StageSolver):
             raise ProblemError("langevin: problems solved together must have the same number of objects")
         gen = torch.Generator().manual_seed(int(seed))
         starts = []
-        for p in problems:
-            if init is not None:
+        for k, p in enumerate(problems):
+            if isinstance(init, list):
+                starts.append(p.full(init[k]))
+            elif init is not None:
                 starts.append(p.full(init))
             elif o.candidates > o.particles:
                 starts.append(screen(p.cost, p.initial(o.candidates, gen), o.particles))

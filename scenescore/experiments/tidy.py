@@ -1,0 +1,410 @@
+"""Tidying messy scenes: which objects to move, how far, in what order, against what it buys.
+
+For each scenario (dining, desk, television and a few of the zoo's): train the energy on its training
+scenes; displace ``k`` objects of each test scene (shifted by a fraction of the bounds' half-extent in
+a random direction and turned, or two objects of different kinds swapped), keeping only messy scenes
+that are collision-free, inside the bounds and *rejected* by the scenario's check. Then, per method:
+
+- ``tidy (effort W)``: :func:`scenescore.tidy.tidy` at each effort weight;
+- ``re-place all``: every movable object placed from scratch by the sampler, no effort term;
+- ``missing placement``: the displaced objects (an oracle says which) placed by ``place``.
+
+Figures: the fraction of results the scenario's check accepts; precision and recall of the moved set
+against the displaced set; total displacement (centre and tip, metres) over the put-back
+displacement (the displaced objects moved back to where they were); objects moved; plan length
+(pick-and-places, buffer moves included) and the fraction of plans valid when replayed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, cast
+
+import numpy as np
+
+from ..costs import Bounds, Displacement, HingeCollision
+from ..models import ScoreModel
+from ..placement import place_many
+from ..problem import Problem
+from ..scenarios import get
+from ..scene import Scene, SceneError, wrap_angle
+from ..solvers.langevin import LangevinOptions
+from ..tidy import EFFORT, TidyError, TidyOptions, plan_moves, tidy_many, validate_plan
+from ..training import TrainConfig, train
+from .report import Row, format_table
+
+__all__ = [
+    "SCENARIOS",
+    "EFFORTS",
+    "SIZES",
+    "MessyCase",
+    "TidyRun",
+    "displaceable",
+    "accepts",
+    "messy_cases",
+    "run",
+    "format_tidy",
+    "plot_pareto",
+]
+
+SCENARIOS: tuple[str, ...] = ("dining", "desk", "tv", "zoo-workstation", "zoo-hall")
+EFFORTS: tuple[float, ...] = (0.3, EFFORT, 3.0)
+SIZES: tuple[float, ...] = (0.15, 0.4)  # displacement, as a fraction of the bounds' smaller half-extent
+CHECK_TOL = 0.08  # the check's position tolerance, as a fraction of the same half-extent
+CHECK_DEG = 20.0  # and its heading tolerance (boxes modulo a half turn)
+
+# objects a scenario's check can judge, where the scenario does not name them (``missing``)
+_DISPLACEABLE: dict[str, tuple[str, ...]] = {"desk": ("mug", "pen"), "tv": ("speaker",)}
+
+
+def displaceable(scenario: Any) -> tuple[str, ...]:
+    """The categories whose objects are displaced (those the scenario's check judges)."""
+    return _DISPLACEABLE.get(scenario.name, tuple(getattr(scenario, "missing", ())))
+
+
+def _half(scene: Scene) -> float:
+    (x0, y0), (x1, y1) = scene.bounds
+    return min(x1 - x0, y1 - y0) / 2
+
+
+def _feasible(scene: Scene, truth: Scene) -> bool:
+    """No overlap but those the true scene has (a lamp on its nightstand), every object inside."""
+    full = HingeCollision(pairs=[[a, b] for k, a in enumerate(scene.names) for b in scene.names[k + 1 :]])
+    allowed = {v.label for v in full.bind(truth, truth.names).check(truth.poses(), 1e-4)}
+    prob = Problem(scene, full + Bounds(), movable=[o.name for o in scene.objects if not o.fixed])
+    return all(v.label in allowed for v in prob.check(scene.poses()).violations)
+
+
+def _heading_ok(obj: Any, got: float, want: float) -> bool:
+    turn = abs(wrap_angle(got - want))
+    if obj.shape_kind == "box":
+        turn = min(turn, math.pi - turn)
+    return math.degrees(turn) <= CHECK_DEG
+
+
+def accepts(scenario: Any, scene: Scene, truth: Scene) -> bool:
+    """The scenario's check: collision-free (as the truth is) and inside the bounds, and every object it
+    judges where the process would put it given the rest (the television's own ``correct``; the desk's
+    pen at its distance to the right of the book)."""
+    if not _feasible(scene, truth):
+        return False
+    if scenario.name == "tv":
+        return bool(scenario.aligned(scene))
+    tol = CHECK_TOL * _half(scene)
+    cats = displaceable(scenario)
+    symmetric = tuple(getattr(scenario, "symmetric", ()))
+    for o in scene.objects:
+        if o.category not in cats or o.pose is None:
+            continue
+        if scenario.name == "desk" and o.category == "pen":
+            if not _pen_ok(scenario, scene, tol):
+                return False
+            continue
+        want = scenario.oracle(scene, o.name)
+        if math.hypot(o.pose[0] - want[0], o.pose[1] - want[1]) > tol:
+            return False
+        if o.category not in symmetric and not o.round and not _heading_ok(o, o.pose[2], want[2]):
+            return False
+    return True
+
+
+def _pen_ok(scenario: Any, scene: Scene, tol: float) -> bool:
+    book, pen = scene["book"].pose, scene["pen"].pose
+    assert book is not None and pen is not None
+    c, s = math.cos(book[2]), math.sin(book[2])
+    dx, dy = pen[0] - book[0], pen[1] - book[1]
+    u, v = c * dx + s * dy, -s * dx + c * dy
+    inside = scenario.pen_min - tol <= u <= scenario.pen_max + tol and abs(v) <= tol
+    return inside and _heading_ok(scene["pen"], pen[2], book[2] + math.pi / 2)
+
+
+@dataclass
+class MessyCase:
+    """A test scene with objects displaced: the truth, the messy scene, which and how."""
+
+    scenario: str
+    truth: Scene
+    messy: Scene
+    displaced: list[str]
+    kind: str  # "shift" or "swap"
+    size: float  # the shift as a fraction of the half-extent (0 for swaps)
+
+    @property
+    def putback(self) -> float:
+        """The displacement of moving the displaced objects back where they were (metres)."""
+        d = Displacement(objects=self.displaced).bind(self.messy)
+        return float(cast(Displacement, d).moves(self.truth.poses()).sum())
+
+
+def messy_cases(
+    scenario: Any,
+    scenes: list[Scene],
+    seed: int,
+    ks: tuple[int, ...] = (1, 2),
+    sizes: tuple[float, ...] = SIZES,
+    swaps: bool = True,
+    tries: int = 200,
+) -> list[MessyCase]:
+    """Per test scene: ``k`` objects shifted by each size (and turned by up to 60 degrees), and one
+    swap of two objects of different kinds; only messy scenes the check rejects that are feasible."""
+    rng = np.random.default_rng(20_000 + seed)
+    cats = displaceable(scenario)
+    out = []
+    for truth in scenes:
+        names = [o.name for o in truth.objects if o.category in cats and not o.fixed and o.pose is not None]
+        half = _half(truth)
+        plans: list[tuple[str, int, float]] = [("shift", k, f) for k in ks if k <= len(names) for f in sizes]
+        pairs = [
+            (a, b)
+            for i, a in enumerate(names)
+            for b in names[i + 1 :]
+            if (truth[a].category, truth[a].size) != (truth[b].category, truth[b].size)
+        ]
+        if swaps and pairs:
+            plans.append(("swap", 2, 0.0))
+        for kind, k, frac in plans:
+            for _ in range(tries):
+                x = truth.poses()
+                if kind == "swap":
+                    a, b = pairs[int(rng.integers(len(pairs)))]
+                    chosen = [a, b]
+                    ia, ib = truth.index(a), truth.index(b)
+                    x[[ia, ib], :2] = x[[ib, ia], :2]
+                else:
+                    chosen = [str(n) for n in rng.choice(names, size=k, replace=False)]
+                    for n in chosen:
+                        i = truth.index(n)
+                        phi = rng.uniform(-math.pi, math.pi)
+                        x[i, :2] += frac * half * np.array([math.cos(phi), math.sin(phi)])
+                        x[i, 2] += rng.uniform(-math.pi / 3, math.pi / 3)
+                messy = truth.with_poses(x)
+                if _feasible(messy, truth) and not accepts(scenario, messy, truth):
+                    out.append(MessyCase(scenario.name, truth, messy, sorted(chosen), kind, frac))
+                    break
+    return out
+
+
+@dataclass
+class Outcome:
+    """One method on one case."""
+
+    accepted: bool
+    moved: list[str]
+    displacement: float
+    plan_steps: int
+    plan_valid: bool
+    buffers: int
+
+
+def _score(
+    case: MessyCase, scenario: Any, after: Scene, moved: list[str], model: ScoreModel, seed: int
+) -> Outcome:
+    """Judge a result and plan its moves (for the methods that do not plan their own)."""
+    d = Displacement(objects=case.messy.names).bind(case.messy)
+    disp = float(cast(Displacement, d).moves(after.poses()).sum())
+    try:
+        steps = plan_moves(case.messy, after, model=model, seed=seed)
+        valid = validate_plan(case.messy, after, steps, model=model).valid
+    except TidyError:
+        steps, valid = [], False
+    return Outcome(
+        accepts(scenario, after, case.truth), moved, disp, len(steps), valid, sum(s.buffer for s in steps)
+    )
+
+
+def _moved(before: Scene, after: Scene, tol: float = 0.01) -> list[str]:
+    d = cast(Displacement, Displacement(objects=before.names).bind(before)).moves(after.poses())
+    return [n for n, v in zip(before.names, d) if v > tol]
+
+
+@dataclass
+class TidyRun:
+    """Every case and every method's outcome on it, per scenario; seconds per method."""
+
+    cases: list[MessyCase] = field(default_factory=list)
+    outcomes: dict[str, list[Outcome]] = field(default_factory=dict)  # method -> one per case
+    seconds: dict[str, float] = field(default_factory=dict)
+    efforts: tuple[float, ...] = EFFORTS
+
+    def figures(self, method: str, select: Callable[[MessyCase], bool] = lambda c: True) -> dict[str, float]:
+        pairs = [(c, o) for c, o in zip(self.cases, self.outcomes[method]) if select(c)]
+        if not pairs:
+            return {}
+        prec, rec = [], []
+        for c, o in pairs:
+            hit = len(set(o.moved) & set(c.displaced))
+            prec.append(hit / len(o.moved) if o.moved else 1.0)
+            rec.append(hit / len(c.displaced))
+        disp = np.array([o.displacement for _, o in pairs])
+        back = np.array([c.putback for c, _ in pairs])
+        return {
+            "cases": len(pairs),
+            "accepted": float(np.mean([o.accepted for _, o in pairs])),
+            "precision": float(np.mean(prec)),
+            "recall": float(np.mean(rec)),
+            "moved": float(np.mean([len(o.moved) for _, o in pairs])),
+            "displacement_m": float(disp.mean()),
+            "putback_m": float(back.mean()),
+            "ratio": float(disp.sum() / max(back.sum(), 1e-12)),
+            "plan_steps": float(np.mean([o.plan_steps for _, o in pairs])),
+            "buffers": float(np.mean([o.buffers for _, o in pairs])),
+            "plans_valid": float(np.mean([o.plan_valid for _, o in pairs])),
+        }
+
+    def rows(self, select: Callable[[MessyCase], bool] = lambda c: True) -> list[Row]:
+        out = []
+        for m in self.outcomes:
+            figs = self.figures(m, select)
+            if figs:
+                figs["seconds"] = self.seconds.get(m, 0.0)
+                out.append(Row(m, figs))
+        return out
+
+
+def method_name(effort: float) -> str:
+    return f"tidy (effort {effort:g})" + (" default" if effort == EFFORT else "")
+
+
+def run(
+    scenarios: tuple[str, ...] = SCENARIOS,
+    efforts: tuple[float, ...] = EFFORTS,
+    test_scenes: int = 3,
+    seed: int = 0,
+    config: TrainConfig | None = None,
+    sizes: tuple[float, ...] = SIZES,
+    log: Callable[[str], None] = print,
+    progress: bool = False,
+    options: TidyOptions | None = None,
+    place_options: LangevinOptions | None = None,
+) -> TidyRun:
+    """Train per scenario, make the messy cases, run every method on them (``options``: tidy's,
+    ``place_options``: the baselines' placement; defaults: the library's)."""
+    res = TidyRun(efforts=tuple(efforts))
+    methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
+    for m in methods:
+        res.outcomes[m] = []
+        res.seconds[m] = 0.0
+    for name in scenarios:
+        sc = get(name)
+        t0 = time.perf_counter()
+        train_s, test_s = sc.split(seed)
+        model = train(train_s, config or TrainConfig(), seed=seed, progress=progress)
+        cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
+        if not cases:
+            raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
+        log(f"{name}: trained in {time.perf_counter() - t0:.0f} s; {len(cases)} messy cases")
+        res.cases += cases
+        messy = [c.messy for c in cases]
+        for e in efforts:
+            t = time.perf_counter()
+            results = tidy_many(model, messy, effort=e, seed=seed, options=options)
+            res.seconds[method_name(e)] += time.perf_counter() - t
+            for c, r in zip(cases, results):
+                out = Outcome(
+                    accepts(sc, r.after, c.truth),
+                    list(r.moved),
+                    r.total_displacement,
+                    len(r.steps),
+                    r.check.valid,
+                    r.buffers,
+                )
+                res.outcomes[method_name(e)].append(out)
+            log(f"{name}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+        t = time.perf_counter()
+        blank = [c.messy.copy() for c in cases]
+        for s in blank:
+            for o in s.objects:
+                if not o.fixed:
+                    o.pose = None
+        placed = place_many(model, blank, place_options, seed=seed)
+        res.seconds["re-place all"] += time.perf_counter() - t
+        res.outcomes["re-place all"] += [
+            _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, placed)
+        ]
+        t = time.perf_counter()
+        holes = []
+        for c in cases:
+            s = c.messy.copy()
+            for n in c.displaced:
+                s.objects[s.index(n)].pose = None
+            holes.append(s)
+        filled = place_many(model, holes, place_options, seed=seed)
+        res.seconds["missing placement"] += time.perf_counter() - t
+        res.outcomes["missing placement"] += [
+            _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, filled)
+        ]
+        log(f"{name}: baselines {time.perf_counter() - t:.0f} s")
+    return res
+
+
+COLUMNS = [
+    ("cases", "cases"),
+    ("accepted", "accepted"),
+    ("precision", "precision"),
+    ("recall", "recall"),
+    ("moved", "moved"),
+    ("displacement_m", "displacement (m)"),
+    ("putback_m", "put-back (m)"),
+    ("ratio", "ratio"),
+    ("plan_steps", "plan steps"),
+    ("buffers", "buffers"),
+    ("plans_valid", "plans valid"),
+    ("seconds", "s"),
+]
+
+
+def _select(what: str) -> Callable[[MessyCase], bool]:
+    if what == "all":
+        return lambda c: True
+    if what in ("shift", "swap"):
+        return lambda c: c.kind == what
+    return lambda c: c.scenario == what
+
+
+def format_tidy(res: TidyRun) -> str:
+    """Markdown: every case, then shifts and swaps apart, then each scenario."""
+    sections = [("all", "All cases (1 or 2 objects displaced)"), ("shift", "Shifts"), ("swap", "Swaps")]
+    sections += [(n, n) for n in dict.fromkeys(c.scenario for c in res.cases)]
+    parts = []
+    for what, title in sections:
+        rows = res.rows(_select(what))
+        if rows:
+            parts.append(f"### {title}\n\n" + format_table(rows, COLUMNS))
+    return "\n\n".join(parts)
+
+
+def plot_pareto(res: TidyRun, path: Any) -> None:
+    """Desirability (accepted fraction) against effort (total displacement over put-back) as the effort
+    weight varies, the baselines as single points."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..plot import save_figure
+
+    fig, ax = plt.subplots(figsize=(5.6, 4.2))
+    pts = [(e, res.figures(method_name(e))) for e in res.efforts]
+    xs = [f["ratio"] for _, f in pts]
+    ys = [f["accepted"] for _, f in pts]
+    ax.plot(xs, ys, "-o", color="C0", label="tidy, effort weight varied")
+    for (e, _), x, y in zip(pts, xs, ys):
+        ax.annotate(f"{e:g}", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7)
+    for m, style in (("missing placement", ("s", "C2")), ("re-place all", ("^", "C3"))):
+        f = res.figures(m)
+        ax.plot([f["ratio"]], [f["accepted"]], style[0], color=style[1], ls="none", label=m)
+    from matplotlib.ticker import NullLocator, ScalarFormatter
+
+    ax.set_xscale("symlog", linthresh=1.0)  # 0 (nothing moved) stays on the chart
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.axvline(1.0, color="0.6", lw=0.8, ls="--")
+    ax.set_xlabel("total displacement / put-back displacement (linear below 1, log above)")
+    ax.set_ylabel("accepted by the scenario's check")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_title("tidying: desirability against effort", fontsize=9)
+    ax.legend(fontsize=7, frameon=False, loc="lower right")
+    save_figure(fig, path)

@@ -1,0 +1,59 @@
+"""The tidy experiment at a tiny size: messy cases, the scenario's check, every method's row, the chart."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import torch
+
+from scenescore.experiments import tidy as T
+from scenescore.sampling import PLACEMENT
+from scenescore.scenarios import get
+from scenescore.solvers.langevin import LangevinOptions
+from scenescore.tidy import TidyOptions
+from scenescore.training import TrainConfig
+
+torch.set_num_threads(1)
+
+
+def test_messy_cases_are_feasible_and_rejected_by_the_check():
+    for name in ("dining", "desk", "tv", "zoo-hall"):
+        sc = get(name)
+        truth = sc.generate(1, 3)
+        assert T.accepts(sc, truth[0], truth[0]), name
+        cases = T.messy_cases(sc, truth, seed=0)
+        assert cases and {c.kind for c in cases} <= {"shift", "swap"}, name
+        for c in cases:
+            assert not T.accepts(sc, c.messy, c.truth) and c.putback > 0, (name, c.displaced)
+            moved = [n for n in c.truth.names if c.truth[n].pose != c.messy[n].pose]
+            assert sorted(moved) == c.displaced
+
+
+def test_run_reports_every_method_and_draws_the_chart(tmp_path):
+    chain = replace(PLACEMENT, steps=2, final_descent=1)
+    tiny = LangevinOptions(particles=2, candidates=4, chain=chain)
+    opts = TidyOptions(
+        proposals=2, candidates=8, particles=2, chain=chain, propose=tiny, refine_options={"max_iter": 2}
+    )
+    res = T.run(
+        ("desk",),
+        efforts=(1.0,),
+        test_scenes=1,
+        config=TrainConfig(iterations=2, batch_scenes=4),
+        sizes=(0.4,),
+        log=lambda s: None,
+        options=opts,
+        place_options=tiny,
+    )
+    methods = [r.method for r in res.rows()]
+    assert methods == ["tidy (effort 1) default", "re-place all", "missing placement"]
+    for r in res.rows():
+        f = r.figures
+        assert 0 <= f["accepted"] <= 1 and 0 <= f["precision"] <= 1 and 0 <= f["recall"] <= 1
+        assert f["cases"] == len(res.cases)
+    missing = res.figures("missing placement")
+    assert missing["precision"] == 1.0 and missing["recall"] == 1.0
+    md = T.format_tidy(res)
+    assert "### All cases" in md and "### desk" in md and "| missing placement |" in md
+    T.plot_pareto(res, tmp_path / "pareto.png")
+    assert (tmp_path / "pareto.png").stat().st_size > 1000

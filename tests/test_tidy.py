@@ -1,0 +1,131 @@
+"""Tidying: the pick-and-place plan (swaps through a buffer), its validator, and tidy's output."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import pytest
+import torch
+
+from scenescore.encoders import FootprintEncoder
+from scenescore.models import ScoreModel
+from scenescore.sampling import PLACEMENT
+from scenescore.scene import Scene, SceneObject
+from scenescore.solvers.langevin import LangevinOptions
+from scenescore.tidy import Step, TidyError, TidyOptions, plan_moves, tidy, validate_plan
+
+torch.set_num_threads(1)
+
+
+def _two(a=(-0.2, 0.0), b=(0.2, 0.0)) -> Scene:
+    return Scene(
+        [
+            SceneObject("red", "box", (0.2, 0.2), (*a, 0.0)),
+            SceneObject("blue", "box", (0.2, 0.2), (*b, 0.0)),
+        ],
+        bounds=((-0.6, -0.6), (0.6, 0.6)),
+    )
+
+
+def test_a_swap_goes_through_a_buffer_and_replays():
+    before = _two()
+    after = _two(a=(0.2, 0.0), b=(-0.2, 0.0))
+    steps = plan_moves(before, after, seed=0)
+    assert len(steps) == 3 and sum(s.buffer for s in steps) == 1
+    assert steps[0].buffer and steps[-1].name == steps[0].name
+    check = validate_plan(before, after, steps)
+    assert check.valid, check.describe()
+    # the same plan through JSON
+    assert validate_plan(before, after, [json.loads(json.dumps(s.to_dict())) for s in steps]).valid
+
+
+def test_a_chain_needs_no_buffer_and_goes_in_order():
+    before = _two(a=(-0.2, 0.0), b=(0.05, 0.0))
+    after = _two(a=(0.05, 0.0), b=(0.35, 0.0))  # red onto blue's place: blue first
+    steps = plan_moves(before, after)
+    assert [s.name for s in steps] == ["blue", "red"] and not any(s.buffer for s in steps)
+    assert validate_plan(before, after, steps).valid
+
+
+def test_the_validator_catches_bad_plans():
+    before = _two(a=(-0.2, 0.0), b=(0.05, 0.0))
+    after = _two(a=(0.05, 0.0), b=(0.35, 0.0))
+    wrong_order = [
+        Step("red", (-0.2, 0.0, 0.0), (0.05, 0.0, 0.0)),
+        Step("blue", (0.05, 0.0, 0.0), (0.35, 0.0, 0.0)),
+    ]
+    check = validate_plan(before, after, wrong_order)
+    assert not check.valid and "step 1: 'red' put down on 'blue'" in check.describe()
+    short = validate_plan(before, after, wrong_order[1:])
+    assert not short.valid and "'red' does not end at its target" in short.describe()
+    outside = [Step("blue", (0.05, 0.0, 0.0), (0.58, 0.0, 0.0))]
+    assert "out of bounds" in validate_plan(before, before, outside).describe()
+    reach = validate_plan(before, after, plan_moves(before, after), reach=((-0.2, 0.0), 0.3))
+    assert not reach.valid and "out of reach" in reach.describe()
+
+
+def test_a_target_on_an_object_that_stays_is_an_error():
+    before = Scene(
+        [
+            SceneObject("red", "box", (0.2, 0.2), (-0.3, 0.0, 0.0)),
+            SceneObject("wall", "box", (0.2, 0.2), (0.2, 0.0, 0.0), fixed=True),
+        ]
+    )
+    after = before.with_poses([[0.2, 0.05, 0.0]], ["red"])
+    with pytest.raises(TidyError, match="'red''s target overlaps 'wall', which does not move"):
+        plan_moves(before, after)
+
+
+def _quick() -> TidyOptions:
+    chain = replace(PLACEMENT, steps=3, final_descent=2)
+    return TidyOptions(
+        proposals=2,
+        candidates=16,
+        particles=4,
+        chain=chain,
+        propose=LangevinOptions(particles=2, candidates=4, chain=chain),
+        refine_options={"max_iter": 3},
+    )
+
+
+def test_tidy_reports_moves_targets_and_a_valid_plan():
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    scene = _two(a=(-0.3, 0.1), b=(0.3, -0.1))
+    r = tidy(model, scene, effort=0.0, seed=0, options=_quick())
+    d = r.to_dict()
+    assert set(d["objects"]) == {"red", "blue"} and d["moved"] == r.moved
+    assert d["plan"]["valid"] and len(d["plan"]["steps"]) >= len(r.moved)
+    assert math.isclose(d["total_displacement"], sum(d["objects"][n]["displacement"] for n in r.moved))
+    for n in scene.names:
+        if n not in r.moved:
+            assert r.after[n].pose == scene[n].pose  # exactly where it was
+    with pytest.raises(TidyError, match="no object may move"):
+        tidy(model, scene, stay=["red", "blue"], options=_quick())
+    with pytest.raises(TidyError, match="pose null"):
+        tidy(model, scene.without("red"), options=_quick())
+    with pytest.raises(TidyError, match="stay: no object named 'green'"):
+        tidy(model, scene, stay=["green"], options=_quick())
+
+
+def test_the_cli_writes_the_moves_the_plan_and_the_plot(tmp_path, capsys):
+    from scenescore.cli import main
+    from scenescore.scenarios import DeskScenario
+
+    torch.manual_seed(0)
+    ScoreModel.create(FootprintEncoder(), hidden=8, layers=1).save(tmp_path / "m.ckpt")
+    scene = DeskScenario().arrange((0.0, 0.0, 0.0), 0.2)
+    scene.with_poses([[0.3, 0.25, 0.4]], ["pen"]).to_json(tmp_path / "messy.json")
+    args = [str(tmp_path / "m.ckpt"), str(tmp_path / "messy.json"), "--out", str(tmp_path / "t.json")]
+    rc = main(["tidy", *args, "--plot", str(tmp_path / "t.png"), "--stay", "book", "--quiet"])
+    assert rc == 0
+    out = json.loads((tmp_path / "t.json").read_text())
+    assert out["plan"]["valid"] and not out["objects"]["book"]["moves"]
+    assert (tmp_path / "t.png").stat().st_size > 1000
+    assert "plan:" in capsys.readouterr().out
+    assert main(["tidy", *args, "--reach", "0,0"]) == 2
+    assert "--reach: expected X,Y,R" in capsys.readouterr().err
+    assert main(["tidy", *args, "--stay", "book,pen,mug"]) == 2
+    assert "no object may move" in capsys.readouterr().err
