@@ -80,7 +80,7 @@ def test_scene_level_errors(tmp_path):
         Scene.from_dict({"objects": [], "bounds": [[1, 0], [0, 1]]})
     with pytest.raises(SceneError, match="unknown key"):
         Scene.from_dict({"objects": [], "bound": 1})
-    with pytest.raises(SceneError, match="no such file"):
+    with pytest.raises(SceneError, match="no such scene file"):
         Scene.from_json(tmp_path / "missing.json")
     (tmp_path / "empty.jsonl").write_text("\n")
     with pytest.raises(SceneError, match="no scenes"):
