@@ -10,7 +10,7 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .base import Coordinate, Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["PoseTarget", "TargetSpec"]
@@ -68,7 +68,7 @@ class TargetSpec(CostSpec):
 
     type: Literal["target"]
     object: str
-    xy: tuple[float, float]
+    xy: tuple[Coordinate, Coordinate]
     theta: float | None = Field(None, allow_inf_nan=False)
 
     def build(self, ctx: SpecContext) -> Cost:

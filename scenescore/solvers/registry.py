@@ -15,7 +15,7 @@ from .base import Solver
 from .chain import Chain
 from .result import Result
 
-__all__ = ["register", "available", "get", "solve"]
+__all__ = ["register", "available", "get", "option_names", "solve"]
 
 
 def _langevin(**o: Any) -> Solver:
@@ -49,6 +49,27 @@ def register(name: str, factory: Callable[..., Solver]) -> None:
 def available() -> list[str]:
     """The registered solver names (chain them with ``>``)."""
     return sorted(_REGISTRY)
+
+
+def option_names(name: str) -> list[str] | None:
+    """The option names a built-in solver takes (``None`` for a registered solver: not known ahead)."""
+    from dataclasses import fields
+
+    if name == "langevin":
+        from ..sampling import LangevinConfig
+        from .langevin import LangevinOptions
+
+        own = {f.name for f in fields(LangevinOptions)} - {"chain"}
+        return sorted(own | {f.name for f in fields(LangevinConfig)})
+    if name == "osqp":
+        from .sqp import SQPOptions
+
+        return sorted(f.name for f in fields(SQPOptions))
+    if name == "casadi":
+        from .casadi import CasadiOptions
+
+        return sorted(f.name for f in fields(CasadiOptions))
+    return None
 
 
 def get(name: str, **options: Any) -> Solver:
