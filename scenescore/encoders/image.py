@@ -9,6 +9,7 @@ the same pipeline as an object detected in a scene image.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -24,7 +25,12 @@ __all__ = ["ImageEncoder", "object_crop_for"]
 def object_crop_for(obj: SceneObject, ppm: float) -> Crop:
     """The crop an encoder sees: the object's ``image`` file, or its sprite rendered alone and cropped."""
     if obj.image is not None:
-        return crop_from_file(obj.image, ppm)
+        if not Path(obj.image).is_file():
+            raise SceneError(f"object {obj.name!r}: field 'image': {obj.image}: no such image file")
+        try:
+            return crop_from_file(obj.image, ppm)
+        except SceneError as e:
+            raise SceneError(f"object {obj.name!r}: field 'image': {e}") from None
     return object_crop(obj, ppm)
 
 
