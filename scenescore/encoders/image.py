@@ -59,6 +59,8 @@ class ImageEncoder:
     dim = 29
 
     def __init__(self, ppm: float = DEFAULT_PPM):
+        if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not (math.isfinite(ppm) and ppm > 0):
+            raise SceneError(f"ImageEncoder: ppm: expected pixels per metre, a number > 0, got {ppm!r}")
         self.ppm = float(ppm)
 
     def config(self) -> dict[str, Any]:

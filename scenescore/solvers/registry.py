@@ -84,6 +84,14 @@ def get(name: str, **options: Any) -> Solver:
         raise ProblemError(
             f"unknown solver {name!r}{hint}; available: {', '.join(available())}; chain them with '>'"
         )
+    valid = option_names(name)
+    unknown = [k for k in options if valid is not None and k not in valid]
+    if unknown and valid is not None:
+        near = difflib.get_close_matches(str(unknown[0]), valid, n=1)
+        hint = f"; did you mean {near[0]!r}?" if near else ""
+        raise ProblemError(
+            f"solver {name!r}: unknown option {unknown[0]!r}{hint} (valid: {', '.join(valid)})"
+        )
     try:
         return _REGISTRY[name](**options)
     except TypeError as e:

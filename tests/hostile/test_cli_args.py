@@ -51,7 +51,11 @@ CASES = [
     ("train --ppm -3", "train {w} --out {w}/x.ckpt --ppm -3", ("--ppm",)),
     ("train --encoder bogus", "train {w}/data.jsonl --out {w}/x.ckpt --encoder bogus", ("'bogus'",)),
     ("train data missing", "train {w}/none.jsonl --out {w}/x.ckpt", ("none.jsonl",)),
-    ("train data cannot teach", "train {w}/one.jsonl --out {w}/x.ckpt --iterations 1", ("no example scene has a movable object",)),
+    (
+        "train data cannot teach",
+        "train {w}/one.jsonl --out {w}/x.ckpt --iterations 1",
+        ("no example scene has a movable object",),
+    ),
     ("train --out under a file", "train {w}/none.jsonl --out {w}/file/x.ckpt", ("--out", "is a file")),
     ("train --out a folder", "train {w}/none.jsonl --out {w}", ("--out", "is a folder")),
     (

@@ -52,29 +52,88 @@ def _no_sidecars(folder):
 
 
 FOLDERS = [
-    ("dataset.json not JSON", lambda d: write(d / "dataset.json", "{bad"), {}, ("dataset.json", "not valid JSON")),
-    ("dataset.json not UTF-8", lambda d: write(d / "dataset.json", b'{"ppm": "\xff"}'), {}, ("dataset.json", "not UTF-8")),
-    ("dataset.json ppm a word", lambda d: (_no_sidecars(d), write(d / "dataset.json", {"ppm": "lots"})), {}, ("dataset.json", "'ppm'", "'lots'")),
+    (
+        "dataset.json not JSON",
+        lambda d: write(d / "dataset.json", "{bad"),
+        {},
+        ("dataset.json", "not valid JSON"),
+    ),
+    (
+        "dataset.json not UTF-8",
+        lambda d: write(d / "dataset.json", b'{"ppm": "\xff"}'),
+        {},
+        ("dataset.json", "not UTF-8"),
+    ),
+    (
+        "dataset.json ppm a word",
+        lambda d: (_no_sidecars(d), write(d / "dataset.json", {"ppm": "lots"})),
+        {},
+        ("dataset.json", "'ppm'", "'lots'"),
+    ),
     ("dataset.json ppm 0", lambda d: write(d / "dataset.json", {"ppm": 0}), {}, ("dataset.json", "'ppm'")),
-    ("dataset.json ppm negative", lambda d: write(d / "dataset.json", {"ppm": -200}), {}, ("dataset.json", "'ppm'")),
+    (
+        "dataset.json ppm negative",
+        lambda d: write(d / "dataset.json", {"ppm": -200}),
+        {},
+        ("dataset.json", "'ppm'"),
+    ),
     ("--ppm disagrees with dataset.json", lambda d: None, {"ppm": 3.0}, ("ppm 3", "dataset.json", "200")),
     ("ppm NaN", lambda d: None, {"ppm": float("nan")}, ("ppm",)),
     ("ppm negative", lambda d: None, {"ppm": -3.0}, ("ppm",)),
-    ("sidecar not JSON", lambda d: write(d / "scene_00001.json", "{"), {}, ("scene_00001.json", "not valid JSON")),
-    ("sidecar ppm a string", lambda d: write(d / "scene_00001.json", {"objects": [], "meta": {"ppm": "x"}}), {}, ("scene_00001.json", "ppm")),
-    ("no index, no sidecar, no ppm", lambda d: (_no_sidecars(d), (d / "dataset.json").unlink()), {}, ("scene_00000.png", "no ppm")),
-    ("corrupt png", lambda d: write(d / "scene_00001.png", b"\x89PNG\r\n\x1a\n garbage"), {}, ("scene_00001.png", "not a readable image")),
-    ("empty png", lambda d: write(d / "scene_00001.png", b""), {}, ("scene_00001.png", "not a readable image")),
+    (
+        "sidecar not JSON",
+        lambda d: write(d / "scene_00001.json", "{"),
+        {},
+        ("scene_00001.json", "not valid JSON"),
+    ),
+    (
+        "sidecar ppm a string",
+        lambda d: write(d / "scene_00001.json", {"objects": [], "meta": {"ppm": "x"}}),
+        {},
+        ("scene_00001.json", "ppm"),
+    ),
+    (
+        "no index, no sidecar, no ppm",
+        lambda d: (_no_sidecars(d), (d / "dataset.json").unlink()),
+        {},
+        ("scene_00000.png", "no ppm"),
+    ),
+    (
+        "corrupt png",
+        lambda d: write(d / "scene_00001.png", b"\x89PNG\r\n\x1a\n garbage"),
+        {},
+        ("scene_00001.png", "not a readable image"),
+    ),
+    (
+        "empty png",
+        lambda d: write(d / "scene_00001.png", b""),
+        {},
+        ("scene_00001.png", "not a readable image"),
+    ),
     ("text named .png", lambda d: write(d / "scene_00001.png", "hello"), {}, ("scene_00001.png",)),
-    ("image of the wrong size for its sidecar", lambda d: _png(d / "scene_00001.png", np.zeros((10, 10, 3), np.uint8)), {}, ("10x10",)),
-    ("a folder named .png", lambda d: ((d / "scene_00001.png").unlink(), (d / "scene_00001.png").mkdir()), {}, ("scene_00001.png",)),
+    (
+        "image of the wrong size for its sidecar",
+        lambda d: _png(d / "scene_00001.png", np.zeros((10, 10, 3), np.uint8)),
+        {},
+        ("10x10",),
+    ),
+    (
+        "a folder named .png",
+        lambda d: ((d / "scene_00001.png").unlink(), (d / "scene_00001.png").mkdir()),
+        {},
+        ("scene_00001.png",),
+    ),
 ]
 
 
 @pytest.mark.parametrize("label,edit,kw,names", FOLDERS, ids=[f[0] for f in FOLDERS])
 def test_image_folder(folder, label, edit, kw, names):
     edit(folder)
-    expect(lambda: scenes_from_image_folder(folder, make_encoder("image", {"ppm": 200}), **kw), SceneError, *names)
+    expect(
+        lambda: scenes_from_image_folder(folder, make_encoder("image", {"ppm": 200}), **kw),
+        SceneError,
+        *names,
+    )
 
 
 def test_not_a_folder(tmp_path):
@@ -105,11 +164,31 @@ def test_train_on_blank_images_cli(tmp_path, capsys):
     d.mkdir()
     for name in ("a.png", "b.png"):
         _png(d / name, np.full((100, 100, 3), 200, np.uint8))
-    cli_error(capsys, "train", d, "--out", tmp_path / "m.ckpt", "--ppm", "200", "--quiet", names=("a.png", "no objects"))
+    cli_error(
+        capsys,
+        "train",
+        d,
+        "--out",
+        tmp_path / "m.ckpt",
+        "--ppm",
+        "200",
+        "--quiet",
+        names=("a.png", "no objects"),
+    )
 
 
 def test_train_with_a_ppm_that_contradicts_the_folder_cli(folder, tmp_path, capsys):
-    cli_error(capsys, "train", folder, "--out", tmp_path / "m.ckpt", "--ppm", "3", "--quiet", names=("ppm 3", "dataset.json"))
+    cli_error(
+        capsys,
+        "train",
+        folder,
+        "--out",
+        tmp_path / "m.ckpt",
+        "--ppm",
+        "3",
+        "--quiet",
+        names=("ppm 3", "dataset.json"),
+    )
 
 
 # -- an object's own image (the ``image`` field) ------------------------------------------------------------
@@ -121,9 +200,21 @@ def _scene_with_image(tmp_path, image):
 OBJECT_IMAGES = [
     ("missing file", lambda t: t / "nope.png", ("'plate'", "nope.png", "no such image")),
     ("a folder", lambda t: t, ("'plate'", "no such image")),
-    ("corrupt file", lambda t: write(t / "bad.png", b"\x89PNG garbage"), ("'plate'", "bad.png", "not a readable image")),
-    ("blank image, nothing found", lambda t: _png(t / "blank.png", np.full((40, 40, 3), 200, np.uint8)), ("'plate'", "blank.png")),
-    ("transparent image, empty mask", lambda t: _png(t / "clear.png", np.zeros((40, 40, 4), np.uint8)), ("'plate'", "clear.png", "empty")),
+    (
+        "corrupt file",
+        lambda t: write(t / "bad.png", b"\x89PNG garbage"),
+        ("'plate'", "bad.png", "not a readable image"),
+    ),
+    (
+        "blank image, nothing found",
+        lambda t: _png(t / "blank.png", np.full((40, 40, 3), 200, np.uint8)),
+        ("'plate'", "blank.png"),
+    ),
+    (
+        "transparent image, empty mask",
+        lambda t: _png(t / "clear.png", np.zeros((40, 40, 4), np.uint8)),
+        ("'plate'", "clear.png", "empty"),
+    ),
 ]
 
 
