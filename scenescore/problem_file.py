@@ -234,10 +234,17 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
         if node is not None:  # bounded before anything expands the aliases
             check_yaml_tree(node, source, ProblemError)
         data = yaml.safe_load(text)
+    except yaml.reader.ReaderError as e:  # a control character YAML does not allow in a file
+        at = text[: e.position].count("\n") + 1
+        raise ProblemError(
+            f"{source}:{at}: not valid YAML: character {chr(e.character)!r} (#x{e.character:04x}) is not "
+            "allowed in YAML"
+        ) from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark else ""
-        raise ProblemError(f"{source}{line}: not valid YAML: {getattr(e, 'problem', e)}") from None
+        at_line = f":{mark.line + 1}" if mark else ""
+        what = " ".join(str(getattr(e, "problem", None) or e).split())  # one line
+        raise ProblemError(f"{source}{at_line}: not valid YAML: {what}") from None
     except RecursionError:
         raise ProblemError(f"{source}: YAML nested deeper than {MAX_DEPTH} levels") from None
     if not isinstance(data, dict) or node is None:

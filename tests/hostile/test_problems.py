@@ -45,7 +45,10 @@ FILES = [
     ),
     ("billion laughs", LAUGHS, ("expands to more than",)),
     ("nested 200 deep", deep_yaml(200), ("nested deeper",)),
-    ("nested 20000 deep", deep_yaml(20000), ("nested deeper",)),
+    ("nested 5000 deep", deep_yaml(5000), ("nested deeper",)),
+    ("control character", BASE + "seed: 1\x08\n", (":6:", "not valid YAML", "#x0008")),
+    ("NUL byte", "scene: scene.json\x00\ncosts: []\n", (":1:", "not valid YAML")),
+    ("BOM then a valid problem", b"\xef\xbb\xbf" + BASE.encode() + b"seed: [1]\n", (":6:", "seed")),
     ("duplicate top key", BASE + "seed: 1\nseed: 2\n", (":7:", "duplicate key 'seed'")),
     (
         "duplicate cost key",
