@@ -212,3 +212,19 @@ def test_float64_weights_load_as_the_model_dtype(tmp_path, parts):
     p = tmp_path / "f64.ckpt"
     save_file({k: v.double() for k, v in tensors.items()}, str(p), metadata=meta)
     assert load(p).dtype == torch.float32
+
+
+@pytest.mark.parametrize("umask,mode", [(0o022, 0o644), (0o077, 0o600)])
+def test_saved_checkpoint_follows_the_umask(tmp_path, umask, mode):
+    import os
+
+    from scenescore.encoders import make_encoder
+    from scenescore.models import ScoreModel
+
+    old = os.umask(umask)
+    try:
+        ScoreModel.create(make_encoder("footprint"), hidden=4, embed_dim=4).save(tmp_path / "m.ckpt")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "m.ckpt").stat().st_mode & 0o777 == mode
+    assert not [p for p in tmp_path.iterdir() if p.name != "m.ckpt"]  # no temporary file left

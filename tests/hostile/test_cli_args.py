@@ -24,6 +24,24 @@ def w(tmp_path, model_path, scene_path):
     line = json.dumps(with_object(2, pose=[0.3, 0.3, 0.0]))
     write(tmp_path / "data.jsonl", (line + "\n") * 3)
     write(tmp_path / "one.jsonl", (json.dumps(scene(objects=SCENE["objects"][:1])) + "\n") * 3)
+    full = json.dumps(with_object(2, pose=[0.3, 0.3, 0.0]))
+    write(tmp_path / "empty_scene.jsonl", f"{full}\n{json.dumps(scene(objects=[]))}\n")
+    write(tmp_path / "null_pose.jsonl", f"{full}\n{json.dumps(SCENE)}\n")
+    write(tmp_path / "far.jsonl", f"{full}\n" + json.dumps(with_object(2, pose=[500.0, 0.0, 0.0])) + "\n")
+    write(
+        tmp_path / "fixed.jsonl",
+        (
+            json.dumps(
+                scene(
+                    objects=[
+                        dict(o, pose=[0.1 * i, 0, 0], fixed=True) for i, o in enumerate(SCENE["objects"])
+                    ]
+                )
+            )
+            + "\n"
+        )
+        * 2,
+    )
     write(
         tmp_path / "p.yaml", "scene: scene.json\nmodel: m.ckpt\ncosts: [{type: energy}, {type: collision}]\n"
     )
@@ -56,6 +74,23 @@ CASES = [
         "train {w}/one.jsonl --out {w}/x.ckpt --iterations 1",
         ("no example scene has a movable object",),
     ),
+    (
+        "train data with an empty scene",
+        "train {w}/empty_scene.jsonl --out {w}/x.ckpt",
+        ("empty_scene.jsonl:2", "no objects"),
+    ),
+    (
+        "train data with a null pose",
+        "train {w}/null_pose.jsonl --out {w}/x.ckpt",
+        ("null_pose.jsonl:2", "cup"),
+    ),
+    (
+        "train data far outside the bounds",
+        "train {w}/far.jsonl --out {w}/x.ckpt",
+        ("far.jsonl:2", "'cup'", "outside the bounds"),
+    ),
+    ("train data all fixed", "train {w}/fixed.jsonl --out {w}/x.ckpt", ("every object is fixed",)),
+    ("train data a folder without images", "train {w}/none_dir --out {w}/x.ckpt", ("none_dir",)),
     ("train --out under a file", "train {w}/none.jsonl --out {w}/file/x.ckpt", ("--out", "is a file")),
     ("train --out a folder", "train {w}/none.jsonl --out {w}", ("--out", "is a folder")),
     (
