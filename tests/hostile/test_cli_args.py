@@ -290,7 +290,3 @@ def test_scene_with_unicode_names_places(w, capsys):
     code, out, err = run_cli(capsys, "place", w / "m.ckpt", w / "u.json", "--particles", "4", "--quiet")
     assert code == 0, err
     assert "tasse \u2615" in out
-
-
-def test_scene_unused(w):
-    assert SCENE["objects"][0]["name"] == "plate"

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import shutil
 
 import cv2
@@ -230,7 +229,3 @@ def test_object_image_that_is_fine(tmp_path):
     s = _scene_with_image(tmp_path, _png(tmp_path / "ok.png", img))
     enc = make_encoder("image")
     assert np.isfinite(encode_scene(s, enc)).all()
-
-
-def test_sidecar_unused(folder):
-    assert json.loads((folder / "dataset.json").read_text())["ppm"] == 200
