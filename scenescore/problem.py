@@ -16,7 +16,7 @@ from torch import Tensor
 
 from .costs import Cost, Sum, Violation, as_sum
 from .sampling import uniform_init
-from .scene import Scene, SceneError
+from .scene import Scene, SceneError, fits_bounds
 
 __all__ = ["Problem", "ProblemError", "Feasibility"]
 
@@ -73,6 +73,13 @@ class Problem:
             raise ProblemError(
                 "Problem: no object may move (every object is fixed or has a known pose and none is listed)"
             )
+        for n in names:
+            if not fits_bounds(scene[n], scene.bounds):
+                (x0, y0), (x1, y1) = scene.bounds
+                raise ProblemError(
+                    f"movable: object {n!r} ({scene[n].size[0]:g} x {scene[n].size[1]:g} m) does not fit inside "
+                    f"the scene's bounds ({x1 - x0:g} x {y1 - y0:g} m) at any heading; nowhere to place it"
+                )
         self.movable_mask = np.array([o.name in names for o in scene.objects])
         self.known = np.array([o.name not in unknown for o in scene.objects])
         self.cost: Sum = as_sum(cost).bind(scene, self.movable_mask)

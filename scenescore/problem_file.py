@@ -32,7 +32,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from .costs import Cost, CostError, CostSpec, cost_types
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError
-from .solvers import available
+from .solvers import available, option_names
+from .solvers import get as get_solver
 from .textfiles import MAX_DEPTH, check_yaml_depth, check_yaml_tree, read_text
 
 __all__ = ["ProblemSpec", "load_problem", "LoadedProblem"]
@@ -50,7 +51,7 @@ class ProblemSpec(BaseModel):
     costs: list[dict[str, Any]] = Field(min_length=1)
     solver: str = "langevin>osqp"
     options: dict[str, dict[str, Any]] = Field(default_factory=dict)
-    seed: int = 0
+    seed: int = Field(0, ge=-(2**63), lt=2**63)
 
 
 @dataclass
@@ -179,19 +180,41 @@ def _cost_spec(entry: dict[str, Any], at: KeyPath, where: _Where) -> CostSpec:
 
 
 def _check_solver_names(spec: ProblemSpec, where: _Where) -> None:
+    """Every stage of ``solver`` exists; every ``options`` entry is for a stage of the chain, names
+    options that solver has (the nearest one suggested) and holds values it accepts."""
     names = available()
+    stages = [stage.strip() for stage in spec.solver.split(">")]
     for stage in spec.solver.split(">"):
         if stage.strip() not in names:
             raise ProblemError(
                 f"{where(('solver',))}: unknown solver {stage!r}{_near(stage.strip(), names)} "
                 f"(available: {', '.join(names)})"
             )
-    for name in spec.options:
+    for name, opts in spec.options.items():
         if name not in names:
             raise ProblemError(
                 f"{where(('options', name))}: unknown solver {name!r}{_near(name, names)} "
                 f"(available: {', '.join(names)})"
             )
+        if name not in stages:
+            raise ProblemError(
+                f"{where(('options', name))}: options for solver {name!r}, which is not in the chain "
+                f"{spec.solver!r}; they would be ignored (remove them, or add {name!r} to 'solver')"
+            )
+        valid = option_names(name)
+        if valid is not None:
+            for key in opts:
+                if key not in valid:
+                    raise ProblemError(
+                        f"{where(('options', name, key))}: unknown option {key!r} for solver {name!r}"
+                        f"{_near(str(key), valid)} (valid: {', '.join(valid)})"
+                    )
+        try:
+            get_solver(name, **opts)
+        except ProblemError as e:
+            bad = [k for k in opts if f": {k}:" in str(e)]
+            at: KeyPath = ("options", name, *bad[:1])
+            raise ProblemError(f"{where(at)}: {e}") from None
 
 
 def load_problem(path: str | os.PathLike | None = None, text: str | None = None) -> LoadedProblem:
@@ -212,10 +235,17 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
         if node is not None:  # bounded before anything expands the aliases
             check_yaml_tree(node, source, ProblemError)
         data = yaml.safe_load(text)
+    except yaml.reader.ReaderError as e:  # a control character YAML does not allow in a file
+        at = text[: e.position].count("\n") + 1
+        raise ProblemError(
+            f"{source}:{at}: not valid YAML: character {chr(e.character)!r} (#x{e.character:04x}) is not "
+            "allowed in YAML"
+        ) from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark else ""
-        raise ProblemError(f"{source}{line}: not valid YAML: {getattr(e, 'problem', e)}") from None
+        at_line = f":{mark.line + 1}" if mark else ""
+        what = " ".join(str(getattr(e, "problem", None) or e).split())  # one line
+        raise ProblemError(f"{source}{at_line}: not valid YAML: {what}") from None
     except RecursionError:
         raise ProblemError(f"{source}: YAML nested deeper than {MAX_DEPTH} levels") from None
     if not isinstance(data, dict) or node is None:

@@ -35,10 +35,18 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "wrap_angle",
+    "fits_bounds",
+    "check_fits",
 ]
 
 Bounds = tuple[tuple[float, float], tuple[float, float]]
 DEFAULT_BOUNDS: Bounds = ((-0.6, -0.6), (0.6, 0.6))
+# the ranges every number read is checked against: finite in the float32 the model computes in, and a
+# scale at which float32 still resolves a millimetre and a milliradian
+MAX_LENGTH = 1e4  # metres: sizes, positions, polygon vertices and bounds (|value|)
+MIN_SIZE = 1e-5  # metres: the smallest footprint side (0.01 mm)
+MAX_ANGLE = 1e3  # radians: |theta| (headings are wrapped; larger values lose float32 precision)
+MAX_FEATURE = 1e6  # |value| of a precomputed feature
 _OBJECT_KEYS = {"name", "category", "size", "pose", "color", "fixed", "shape", "features", "image"}
 _SCENE_KEYS = {"objects", "bounds", "meta"}
 
@@ -104,20 +112,64 @@ def _where(source: str | None, line: int | None) -> str:
     return f"{source}:{line}" if line is not None else str(source)
 
 
-def _number(value: Any, what: str) -> float:
+def _number(value: Any, what: str, limit: float | None = None, unit: str = "") -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SceneError(f"{what}: expected a number, got {value!r}")
     if not math.isfinite(value):
         raise SceneError(f"{what}: expected a finite number, got {value!r}")
+    if limit is not None and not abs(value) <= limit:
+        raise SceneError(f"{what}: expected a number within +-{limit:g}{unit}, got {value!r}")
     return float(value)
 
 
-def _vector(value: Any, n: int | None, what: str) -> list[float]:
+def _vector(
+    value: Any, n: int | None, what: str, limits: Sequence[float] | float | None = None, unit: str = ""
+) -> list[float]:
     if not isinstance(value, (list, tuple)):
         raise SceneError(f"{what}: expected a list of {n if n else 'some'} numbers, got {value!r}")
     if n is not None and len(value) != n:
         raise SceneError(f"{what}: expected {n} numbers, got {len(value)}: {value!r}")
-    return [_number(v, f"{what}[{i}]") for i, v in enumerate(value)]
+    if n is None and not value:
+        raise SceneError(f"{what}: expected at least one number, got []")
+    lim = [limits] * len(value) if limits is None or isinstance(limits, (int, float)) else list(limits)
+    return [_number(v, f"{what}[{i}]", lim[i], unit) for i, v in enumerate(value)]
+
+
+def _check_polygon(points: list[list[float]], what: str) -> None:
+    """A footprint outline must be a simple polygon with an area: no crossing edges, not all on a line."""
+    from shapely.geometry import Polygon
+
+    poly = Polygon(points)
+    if not poly.is_valid:
+        raise SceneError(
+            f"{what}: the outline self-intersects (its edges cross); expected a simple polygon, got {points}"
+        )
+    span = float(np.ptp(np.asarray(points), axis=0).max())
+    if not poly.area > 1e-9 * span**2 or poly.area < MIN_SIZE**2:
+        raise SceneError(f"{what}: the outline has no area (collinear or repeated points), got {points}")
+
+
+def fits_bounds(obj: SceneObject, bounds: Bounds) -> bool:
+    """Whether ``obj``'s footprint fits inside ``bounds`` at some heading (checked every half degree)."""
+    (x0, y0), (x1, y1) = bounds
+    pts = obj.polygon()
+    t = np.linspace(0.0, np.pi, 361)
+    c, s = np.cos(t)[:, None], np.sin(t)[:, None]
+    xs = pts[:, 0][None] * c - pts[:, 1][None] * s  # (angles, K)
+    ys = pts[:, 0][None] * s + pts[:, 1][None] * c
+    w, h = xs.max(1) - xs.min(1), ys.max(1) - ys.min(1)
+    tol = 1e-9 * max(x1 - x0, y1 - y0)
+    return bool(np.any((w <= x1 - x0 + tol) & (h <= y1 - y0 + tol)))
+
+
+def check_fits(obj: SceneObject, bounds: Bounds, where: str) -> None:
+    """Raise :class:`SceneError` naming ``obj`` when it cannot be placed inside ``bounds`` at any heading."""
+    if not fits_bounds(obj, bounds):
+        (x0, y0), (x1, y1) = bounds
+        raise SceneError(
+            f"{where}: object {obj.name!r} ({obj.size[0]:g} x {obj.size[1]:g} m) does not fit inside its "
+            f"bounds ({x1 - x0:g} x {y1 - y0:g} m) at any heading; nowhere to place it"
+        )
 
 
 @dataclass
@@ -166,6 +218,13 @@ class SceneObject:
         return local @ np.array([[c, s], [-s, c]]) + np.array([x, y])
 
     def to_dict(self) -> dict[str, Any]:
+        """The JSON mapping; a non-finite size, pose or feature is refused (the reader would refuse it)."""
+        for key, values in (("size", self.size), ("pose", self.pose), ("features", self.features)):
+            if values is not None and not all(math.isfinite(float(v)) for v in values):
+                raise SceneError(
+                    f"object {self.name!r}: field {key!r} is not finite ({[float(v) for v in values]}); "
+                    "not written"
+                )
         d: dict[str, Any] = {
             "name": self.name,
             "category": self.category,
@@ -203,16 +262,25 @@ class SceneObject:
             )
         if not isinstance(d["category"], str) or not d["category"]:
             raise SceneError(f"{label}: field 'category': expected a non-empty string, got {d['category']!r}")
-        size = _vector(d["size"], 2, f"{label}: field 'size'")
-        if min(size) <= 0:
-            raise SceneError(f"{label}: field 'size': expected two positive lengths in metres, got {size}")
+        size = _vector(d["size"], 2, f"{label}: field 'size'", MAX_LENGTH, " m")
+        if not min(size) >= MIN_SIZE:
+            raise SceneError(
+                f"{label}: field 'size': expected two positive lengths in metres (at least {MIN_SIZE:g}), "
+                f"got {size}"
+            )
         pose_raw = d.get("pose")
         pose = (
-            None if pose_raw is None else tuple(_vector(pose_raw, 3, f"{label}: field 'pose' [x, y, theta]"))
+            None
+            if pose_raw is None
+            else tuple(
+                _vector(
+                    pose_raw, 3, f"{label}: field 'pose' [x, y, theta]", (MAX_LENGTH, MAX_LENGTH, MAX_ANGLE)
+                )
+            )
         )
         color_raw = d.get("color", [128, 128, 128])
         color = _vector(color_raw, 3, f"{label}: field 'color'")
-        if any(c < 0 or c > 255 for c in color):
+        if any(c < 0 or c > 255 or c != int(c) for c in color):
             raise SceneError(f"{label}: field 'color': expected three integers in 0..255, got {color_raw!r}")
         fixed = d.get("fixed", False)
         if not isinstance(fixed, bool):
@@ -230,17 +298,21 @@ class SceneObject:
                     f"{label}: field 'shape.polygon': expected at least 3 [x, y] points, got {pts!r}"
                 )
             shape = {
-                "polygon": [_vector(p, 2, f"{label}: field 'shape.polygon[{i}]'") for i, p in enumerate(pts)]
+                "polygon": [
+                    _vector(p, 2, f"{label}: field 'shape.polygon[{i}]'", MAX_LENGTH, " m")
+                    for i, p in enumerate(pts)
+                ]
             }
+            _check_polygon(shape["polygon"], f"{label}: field 'shape.polygon'")
         else:
             raise SceneError(
                 f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}"
             )
         feats = d.get("features")
         if feats is not None:
-            feats = _vector(feats, None, f"{label}: field 'features'")
+            feats = _vector(feats, None, f"{label}: field 'features'", MAX_FEATURE)
         image = d.get("image")
-        if image is not None and not isinstance(image, str):
+        if image is not None and (not isinstance(image, str) or not image.strip()):
             raise SceneError(f"{label}: field 'image': expected a path string, got {image!r}")
         if pose is None and fixed:
             raise SceneError(f"{label}: a fixed object needs a pose (got pose null and fixed true)")
@@ -379,14 +451,17 @@ class Scene:
             b = d["bounds"]
             if not isinstance(b, list) or len(b) != 2:
                 raise SceneError(f"{where}: key 'bounds': expected [[xmin, ymin], [xmax, ymax]], got {b!r}")
-            lo = _vector(b[0], 2, f"{where}: key 'bounds[0]'")
-            hi = _vector(b[1], 2, f"{where}: key 'bounds[1]'")
+            lo = _vector(b[0], 2, f"{where}: key 'bounds[0]'", MAX_LENGTH, " m")
+            hi = _vector(b[1], 2, f"{where}: key 'bounds[1]'", MAX_LENGTH, " m")
             if not (lo[0] < hi[0] and lo[1] < hi[1]):
                 raise SceneError(f"{where}: key 'bounds': expected min < max on both axes, got {b!r}")
             bounds = ((lo[0], lo[1]), (hi[0], hi[1]))
         meta = d.get("meta") or {}
         if not isinstance(meta, dict):
             raise SceneError(f"{where}: key 'meta': expected a mapping, got {meta!r}")
+        for o in objects:
+            if o.pose is None:  # to be placed: it must fit somewhere
+                check_fits(o, bounds, where)
         return cls(objects=objects, bounds=bounds, meta=meta, origin=None if source is None else where)
 
     @classmethod

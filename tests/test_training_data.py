@@ -38,7 +38,11 @@ def _null_pose(rows):
 
 
 def _far(rows):
-    rows[1]["objects"][0]["pose"] = [1e9, 0.0, 0.0]
+    rows[1]["objects"][0]["pose"] = [
+        1e3,
+        0.0,
+        0.0,
+    ]  # metres where the table is 1.2 m (1e9 the reader refuses)
 
 
 def _one_object(rows):
@@ -57,7 +61,7 @@ def _all_fixed(rows):
     [
         (_empty_third, ":3: the scene has no objects"),
         (_null_pose, ":4: objects without a pose"),
-        (_far, ":2: object 'plate_0' at (1e+09, 0) lies far outside the bounds"),
+        (_far, ":2: object 'plate_0' at (1000, 0) lies far outside the bounds"),
         (_one_object, "no example scene has a movable object beside another"),
         (_all_fixed, "no example scene has a movable object beside another"),
     ],

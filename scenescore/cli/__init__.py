@@ -48,9 +48,46 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def number(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    integer: bool = False,
+    open_lo: bool = False,
+    open_hi: bool = False,
+):
+    """An argparse ``type``: a finite number (an integer if ``integer``) in the range given; anything else is
+    refused by argparse with one line naming the option (``argument --val: expected ...``)."""
+    import math
+
+    def parse(text: str) -> float | int:
+        kind = "an integer" if integer else "a finite number"
+        rng = []
+        if lo is not None:
+            rng.append(f"{'>' if open_lo else '>='} {lo:g}")
+        if hi is not None:
+            rng.append(f"{'<' if open_hi else '<='} {hi:g}")
+        expected = f"expected {kind}{' ' + ' and '.join(rng) if rng else ''}, got {text!r}"
+        try:
+            value: float | int = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(expected) from None
+        ok = math.isfinite(value)
+        ok = ok and (lo is None or (value > lo if open_lo else value >= lo))
+        ok = ok and (hi is None or (value < hi if open_hi else value <= hi))
+        if not ok:
+            raise argparse.ArgumentTypeError(expected)
+        return value
+
+    return parse
+
+
+SEED = number(-(2**63), 2**63 - 1, integer=True)  # what torch's generators take
+
+
 def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None = None) -> None:
     """Options every command has."""
-    p.add_argument("--seed", type=int, default=seed, help=seed_help or f"random seed (default {seed})")
+    p.add_argument("--seed", type=SEED, default=seed, help=seed_help or f"random seed (default {seed})")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 

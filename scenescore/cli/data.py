@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common
+from . import UserError, add_common, number
+
+PPM = number(0, open_lo=True)  # pixels per metre
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,9 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--images", type=Path, default=None, help="also render top-down images (and a JSON per image) here"
     )
-    p.add_argument(
-        "--ppm", type=float, default=None, help="image resolution in pixels per metre (default 500)"
-    )
+    p.add_argument("--ppm", type=PPM, default=None, help="image resolution in pixels per metre (default 500)")
     p.add_argument("--list", action="store_true", help="list the scenarios and exit")
     add_common(p)
     p.set_defaults(func=run_generate)
@@ -64,13 +64,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--ppm",
-        type=float,
+        type=PPM,
         default=None,
         help="pixels per metre of the images (folder input; default: from the folder's dataset.json)",
     )
     p.add_argument(
         "--val",
-        type=float,
+        type=number(0, 1, open_hi=True),
         default=0.15,
         help="fraction of the scenes held out for validation (default 0.15, at least 4 scenes; 0: none)",
     )

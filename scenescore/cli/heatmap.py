@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common
+from . import UserError, add_common, number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,7 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--object", required=True, help="the object to move over the grid")
     p.add_argument("--out", type=Path, required=True, help="PNG to write")
     p.add_argument("--resolution", type=float, default=0.01, help="grid spacing in m (default 0.01)")
-    p.add_argument("--theta", type=float, default=0.0, help="the object's heading on the grid (rad)")
+    p.add_argument(
+        "--theta", type=number(-1e3, 1e3), default=0.0, help="the object's heading on the grid (rad)"
+    )
     add_common(p)
     p.set_defaults(func=run)
 

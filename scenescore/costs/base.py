@@ -20,7 +20,7 @@ import copy
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, cast
+from typing import Annotated, Any, Protocol, cast
 
 import numpy as np
 import torch
@@ -28,7 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from torch import Tensor
 
 from ..geometry import Footprints
-from ..scene import Scene, SceneError
+from ..scene import MAX_LENGTH, Scene, SceneError
 
 __all__ = [
     "CostError",
@@ -42,6 +42,7 @@ __all__ = [
     "stack_sums",
     "check_scene_names",
     "CostSpec",
+    "Coordinate",
     "SpecContext",
     "register_cost_type",
     "cost_types",
@@ -453,6 +454,10 @@ class SpecContext(Protocol):
         ...
 
 
+#: a coordinate in metres in a YAML spec: finite and within the range scenes allow
+Coordinate = Annotated[float, Field(ge=-MAX_LENGTH, le=MAX_LENGTH)]
+
+
 class CostSpec(BaseModel):
     """Base of a cost's YAML spec: ``type``, ``weight``, ``name`` and the cost's own keys (no others).
 
@@ -460,7 +465,7 @@ class CostSpec(BaseModel):
     :meth:`build`; :func:`register_cost_type` makes ``type: mytype`` valid in problem files.
     """
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)  # no NaN or inf in any number
     type: str
     weight: float = Field(1.0, ge=0, allow_inf_nan=False)
     name: str | None = None

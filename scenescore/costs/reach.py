@@ -12,6 +12,7 @@ from torch import Tensor
 
 from .base import (
     ConstraintCost,
+    Coordinate,
     Cost,
     CostError,
     CostSpec,
@@ -107,7 +108,7 @@ class ReachSpec(CostSpec):
     """``{type: reach, weight, base: [x, y], radius, objects, name}``."""
 
     type: Literal["reach"]
-    base: tuple[float, float]
+    base: tuple[Coordinate, Coordinate]
     radius: float = Field(gt=0, allow_inf_nan=False)
     objects: list[str] | None = None
 

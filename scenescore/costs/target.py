@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Literal
 
@@ -10,7 +11,8 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from ..scene import MAX_LENGTH
+from .base import Coordinate, Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["PoseTarget", "TargetSpec"]
@@ -29,8 +31,15 @@ class PoseTarget(Cost):
         theta_weight: float = 0.01,
         name: str | None = None,
     ):
-        if len(xy) != 2:
-            raise CostError(f"PoseTarget: xy: expected [x, y] in metres, got {xy!r}")
+        if len(xy) != 2 or not all(
+            isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= MAX_LENGTH for v in xy
+        ):
+            raise CostError(
+                f"PoseTarget: xy: expected [x, y] in metres, finite and within +-{MAX_LENGTH:g}, got {xy!r}"
+            )
+        for key, v in (("theta", theta), ("theta_weight", theta_weight)):
+            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
+                raise CostError(f"PoseTarget: {key}: expected a finite number, got {v!r}")
         self.obj = obj
         self.xy = (float(xy[0]), float(xy[1]))
         self.theta = None if theta is None else float(theta)
@@ -68,7 +77,7 @@ class TargetSpec(CostSpec):
 
     type: Literal["target"]
     object: str
-    xy: tuple[float, float]
+    xy: tuple[Coordinate, Coordinate]
     theta: float | None = Field(None, allow_inf_nan=False)
 
     def build(self, ctx: SpecContext) -> Cost:

@@ -84,10 +84,15 @@ def encode_scene(scene: Scene, encoder: Encoder, names: Sequence[str] | None = N
         if o.features is not None:
             if len(o.features) != encoder.dim:
                 raise SceneError(
-                    f"object {o.name!r}: field 'features' has {len(o.features)} numbers; "
+                    f"{scene.label()}: object {o.name!r}: field 'features' has {len(o.features)} numbers; "
                     f"the encoder {encoder.name!r} makes vectors of {encoder.dim}"
                 )
             out[i] = np.asarray(o.features, dtype=np.float32)
         else:
-            out[i] = encoder.encode(o)
+            try:
+                out[i] = encoder.encode(o)
+            except SceneError as e:  # e.g. an image that cannot be read: say which scene
+                if scene.origin is None or str(e).startswith(scene.origin):
+                    raise
+                raise SceneError(f"{scene.origin}: {e}") from None
     return out

@@ -9,6 +9,7 @@ the same pipeline as an object detected in a scene image.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -24,7 +25,12 @@ __all__ = ["ImageEncoder", "object_crop_for"]
 def object_crop_for(obj: SceneObject, ppm: float) -> Crop:
     """The crop an encoder sees: the object's ``image`` file, or its sprite rendered alone and cropped."""
     if obj.image is not None:
-        return crop_from_file(obj.image, ppm)
+        if not Path(obj.image).is_file():
+            raise SceneError(f"object {obj.name!r}: field 'image': {obj.image}: no such image file")
+        try:
+            return crop_from_file(obj.image, ppm)
+        except SceneError as e:
+            raise SceneError(f"object {obj.name!r}: field 'image': {e}") from None
     return object_crop(obj, ppm)
 
 
@@ -53,6 +59,8 @@ class ImageEncoder:
     dim = 29
 
     def __init__(self, ppm: float = DEFAULT_PPM):
+        if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not (math.isfinite(ppm) and ppm > 0):
+            raise SceneError(f"ImageEncoder: ppm: expected pixels per metre, a number > 0, got {ppm!r}")
         self.ppm = float(ppm)
 
     def config(self) -> dict[str, Any]:

@@ -64,6 +64,8 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
     path = Path(path)
     if not path.exists():
         raise CheckpointError(f"{path}: no such checkpoint file")
+    if path.is_dir():
+        raise CheckpointError(f"{path}: is a folder; expected a checkpoint file")
     try:
         with safe_open(str(path), framework="pt") as f:
             meta = f.metadata() or {}
@@ -88,6 +90,8 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
         info = json.loads(meta.get("info", "{}"))
         if not isinstance(energy_config, dict) or not isinstance(encoder, dict) or "name" not in encoder:
             raise TypeError("expected JSON objects, the encoder with a 'name'")
+        if not isinstance(info, dict):
+            raise TypeError(f"info: expected a JSON object, got {type(info).__name__}")
     except (KeyError, TypeError, json.JSONDecodeError) as e:
         raise CheckpointError(f"{path}: checkpoint metadata is damaged ({e})") from None
     return Checkpoint(tensors, energy_config, encoder, info)

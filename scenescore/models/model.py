@@ -138,4 +138,9 @@ def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:
     except RuntimeError as e:
         raise CheckpointError(f"{path}: weights do not match the stored config: {e}") from None
     net.eval()
+    if "trust" in ck.info:
+        try:
+            TrustReference.from_dict(ck.info["trust"])
+        except ValueError as e:
+            raise CheckpointError(f"{path}: checkpoint metadata is damaged: info.trust: {e}") from None
     return ScoreModel(net, encoder, ck.info)

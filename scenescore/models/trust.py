@@ -74,7 +74,36 @@ class TrustReference:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrustReference:
-        return cls(**d)
+        """Read a stored reference; a missing, unknown or mistyped field raises ``ValueError`` naming it."""
+        if not isinstance(d, dict):
+            raise ValueError(f"expected a mapping, got {type(d).__name__}")
+        try:
+            ref = cls(**d)
+        except TypeError as e:
+            raise ValueError(str(e).replace("TrustReference.__init__() ", "")) from None
+
+        def finite(v: Any) -> bool:
+            return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+        checks = {
+            "energies": isinstance(ref.energies, list)
+            and len(ref.energies) > 0
+            and all(map(finite, ref.energies)),
+            "length_scale": finite(ref.length_scale) and ref.length_scale > 0,
+            "nearest": isinstance(ref.nearest, dict) and all(map(finite, ref.nearest.values())),
+            "nearest_any": finite(ref.nearest_any),
+            "touches_bounds": isinstance(ref.touches_bounds, list),
+            "features": isinstance(ref.features, list)
+            and all(isinstance(f, list) and all(map(finite, f)) for f in ref.features),
+            "feature_radius": finite(ref.feature_radius),
+            "overlaps": ref.overlaps is None or isinstance(ref.overlaps, list),
+        }
+        bad = [k for k, ok in checks.items() if not ok]
+        if bad:
+            raise ValueError(
+                f"{bad[0]}: not the expected finite numbers or lists, got {getattr(ref, bad[0])!r:.80}"
+            )
+        return ref
 
 
 @dataclass

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from .base import Solver, StageSolver, start_poses, torch_threads
 from .chain import Chain
-from .registry import available, get, register, solve
+from .registry import available, get, option_names, register, solve
 from .result import Result, Status, make_result
 
 __all__ = [
@@ -23,6 +23,7 @@ __all__ = [
     "Result",
     "Status",
     "available",
+    "option_names",
     "get",
     "register",
     "solve",

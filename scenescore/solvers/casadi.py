@@ -20,6 +20,7 @@ import numpy as np
 from torch import Tensor
 
 from ..costs.symbolic import SymbolicProblem, casadi_form
+from ..errors import ConfigError, check_number
 from ..problem import Problem
 from .base import StageSolver, start_poses
 from .result import Result, Status, make_result
@@ -39,7 +40,12 @@ class CasadiOptions:
 
     def __post_init__(self) -> None:
         if self.energy not in ("mx", "callback"):
-            raise ValueError(f"casadi: energy: expected 'mx' or 'callback', got {self.energy!r}")
+            raise ConfigError(f"casadi: energy: expected 'mx' or 'callback', got {self.energy!r}")
+        check_number("casadi", "max_iter", self.max_iter, 0, 1_000_000, integer=True)
+        check_number("casadi", "tol", self.tol, 0, open_lo=True)
+        check_number("casadi", "constr_viol_tol", self.constr_viol_tol, 0, open_lo=True)
+        if self.threads is not None:
+            check_number("casadi", "threads", self.threads, 1, 1024, integer=True)
 
 
 class _Built:

@@ -15,7 +15,7 @@ from .base import Solver
 from .chain import Chain
 from .result import Result
 
-__all__ = ["register", "available", "get", "solve"]
+__all__ = ["register", "available", "get", "option_names", "solve"]
 
 
 def _langevin(**o: Any) -> Solver:
@@ -51,6 +51,27 @@ def available() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def option_names(name: str) -> list[str] | None:
+    """The option names a built-in solver takes (``None`` for a registered solver: not known ahead)."""
+    from dataclasses import fields
+
+    if name == "langevin":
+        from ..sampling import LangevinConfig
+        from .langevin import LangevinOptions
+
+        own = {f.name for f in fields(LangevinOptions)} - {"chain"}
+        return sorted(own | {f.name for f in fields(LangevinConfig)})
+    if name == "osqp":
+        from .sqp import SQPOptions
+
+        return sorted(f.name for f in fields(SQPOptions))
+    if name == "casadi":
+        from .casadi import CasadiOptions
+
+        return sorted(f.name for f in fields(CasadiOptions))
+    return None
+
+
 def get(name: str, **options: Any) -> Solver:
     """A solver by name with its options, or a chain ``"a>b"`` with options per stage name
     (``get("langevin>osqp", langevin={"steps": 50})``); an unknown name lists the valid ones."""
@@ -62,6 +83,14 @@ def get(name: str, **options: Any) -> Solver:
         hint = f" (did you mean {near[0]!r}?)" if near else ""
         raise ProblemError(
             f"unknown solver {name!r}{hint}; available: {', '.join(available())}; chain them with '>'"
+        )
+    valid = option_names(name)
+    unknown = [k for k in options if valid is not None and k not in valid]
+    if unknown and valid is not None:
+        near = difflib.get_close_matches(str(unknown[0]), valid, n=1)
+        hint = f"; did you mean {near[0]!r}?" if near else ""
+        raise ProblemError(
+            f"solver {name!r}: unknown option {unknown[0]!r}{hint} (valid: {', '.join(valid)})"
         )
     try:
         return _REGISTRY[name](**options)

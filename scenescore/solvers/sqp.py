@@ -21,12 +21,15 @@ import scipy.sparse as sp
 import torch
 from torch import Tensor
 
+from ..errors import ConfigError, check_number
 from ..problem import FEASIBILITY_TOL, Problem
 from .base import StageSolver, start_poses
 from .projection import ANGLE_WEIGHT
 from .result import Result, Status, make_result
 
 __all__ = ["SQPOptions", "OSQPSolver"]
+
+MAX_ITER = 1_000_000  # more is a typo, not a plan
 
 
 @dataclass
@@ -43,6 +46,20 @@ class SQPOptions:
     tol_step: float = 1e-7  # converged when the step is this small (metres) ...
     tol_kkt: float = 1e-5  # ... or the Lagrangian's gradient this small, with violations within slack
     threads: int | None = None  # torch threads; None: one (tiny tensors)
+
+    def __post_init__(self) -> None:
+        check_number("osqp", "max_iter", self.max_iter, 0, MAX_ITER, integer=True)
+        for name in ("trust_init", "trust_max", "trust_min", "tol_step", "tol_kkt", "elastic"):
+            check_number("osqp", name, getattr(self, name), 0, open_lo=True)
+        for name in ("slack", "merit_tol"):
+            check_number("osqp", name, getattr(self, name), 0)
+        if not self.trust_min <= self.trust_init <= self.trust_max:
+            raise ConfigError(
+                f"osqp: trust_init: expected trust_min <= trust_init <= trust_max, got {self.trust_min:g}, "
+                f"{self.trust_init:g}, {self.trust_max:g}"
+            )
+        if self.threads is not None:
+            check_number("osqp", "threads", self.threads, 1, 1024, integer=True)
 
 
 class _Model:

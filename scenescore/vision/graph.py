@@ -8,7 +8,6 @@ derived graphs and measure every stage); :func:`scenes_from_image_folder` reads 
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -41,6 +40,11 @@ def _encode(encoder: Encoder, crop, obj: SceneObject) -> np.ndarray:
     return np.asarray(
         encoder.encode(obj), dtype=np.float32
     )  # e.g. the footprint encoder: size, shape, colour
+
+
+def _check_ppm(ppm: Any, what: str) -> None:
+    if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not (math.isfinite(ppm) and ppm > 0):
+        raise SceneError(f"{what}: expected pixels per metre, a number > 0, got {ppm!r}")
 
 
 def scene_from_image(
@@ -76,6 +80,7 @@ def scene_and_poses_from_image(
     min_area: float = 2e-5,
 ) -> tuple[Scene, list[MomentPose]]:
     """As :func:`scene_from_image`, with the :class:`MomentPose` of each object (symmetry, centroid, ...)."""
+    _check_ppm(ppm, "scene_from_image: ppm")
     if not isinstance(image, np.ndarray):
         image = read_image(image)
     h, w = image.shape[:2]
@@ -254,9 +259,22 @@ def scenes_from_image_folder(
     images = sorted(p for p in folder.glob("*.png") if not p.name.endswith(skip))
     if not images:
         raise SceneError(f"{folder}: no .png images in the folder")
+    if ppm is not None:
+        _check_ppm(ppm, "ppm")
     index_ppm = None
-    if (folder / "dataset.json").is_file():
-        index_ppm = json.loads((folder / "dataset.json").read_text()).get("ppm")
+    index = folder / "dataset.json"
+    if index.is_file():
+        from ..textfiles import loads_json, read_text
+
+        data = loads_json(read_text(index, SceneError, "dataset index"), str(index), SceneError)
+        index_ppm = data.get("ppm") if isinstance(data, dict) else None
+        if index_ppm is not None:
+            _check_ppm(index_ppm, f"{index}: key 'ppm'")
+            if ppm is not None and not math.isclose(float(ppm), float(index_ppm), rel_tol=1e-6):
+                raise SceneError(
+                    f"ppm {ppm:g} disagrees with {index}, which says the images are at {index_ppm:g} px/m; "
+                    "leave ppm out to use the folder's"
+                )
     it: Any = images
     if progress:
         from tqdm import tqdm
@@ -273,7 +291,9 @@ def scenes_from_image_folder(
         p = p or index_ppm
         if not p:
             raise SceneError(f"{path}: no ppm for the image: pass ppm (pixels per metre) or add {side.name}")
+        _check_ppm(p, f"{side}: key 'meta.ppm'")
         scene = scene_from_image(path, float(p), b, encoder, detector)
         scene.meta["image"] = path.name
+        scene.origin = str(path)  # errors about the scene (no objects found, ...) name the image
         scenes.append(scene)
     return scenes
