@@ -396,10 +396,13 @@ def plot_pareto(res: TidyRun, path: Any) -> None:
     for m, style in (("missing placement", ("s", "C2")), ("re-place all", ("^", "C3"))):
         f = res.figures(m)
         ax.plot([f["ratio"]], [f["accepted"]], style[0], color=style[1], ls="none", label=m)
-    from matplotlib.ticker import NullLocator, ScalarFormatter
+    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullLocator
 
     ax.set_xscale("symlog", linthresh=1.0)  # 0 (nothing moved) stays on the chart
-    ax.xaxis.set_major_formatter(ScalarFormatter())
+    top = max([1.0, *xs, *(res.figures(m)["ratio"] for m in ("missing placement", "re-place all"))])
+    ticks = [0, 0.5, 1] + [t for t in (2, 5, 10, 20, 50, 100) if t <= 1.2 * top]
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_locator(NullLocator())
     ax.axvline(1.0, color="0.6", lw=0.8, ls="--")
     ax.set_xlabel("total displacement / put-back displacement (linear below 1, log above)")
