@@ -231,6 +231,7 @@ class EnergyNet(nn.Module):
         mask: Tensor | None = None,
         nodes: Tensor | None = None,
         round: Tensor | None = None,
+        weight_grads: bool = True,
     ) -> Tensor:
         """Energy per scene. ``nodes`` may carry a precomputed :meth:`node_embedding` (broadcast over B);
         ``round (B or 1, N)``: the round objects, whose headings a ``round_invariant`` network ignores.
@@ -238,7 +239,8 @@ class EnergyNet(nn.Module):
         A batch larger than :meth:`chunk_rows` goes through the message layers in chunks of rows (with a
         gradient, each chunk is recomputed in the backward pass instead of kept), and the head sees the
         whole batch: the same numbers as one pass, in bounded memory. The chunked path has first
-        derivatives only (no ``create_graph``)."""
+        derivatives only (no ``create_graph``); with ``weight_grads=False`` (sampling, which needs the
+        gradient with respect to the poses alone) it gives the weights none."""
         b, n, _ = poses.shape
         grad = torch.is_grad_enabled()
         rows = self.chunk_rows(n, grad, poses.element_size())
@@ -246,7 +248,8 @@ class EnergyNet(nn.Module):
         if b <= rows:
             pooled = self._pooled(*args)
         else:
-            pooled = _ChunkedPooled.apply(self, rows, *args, *self.parameters())
+            weights = list(self.parameters()) if weight_grads else []
+            pooled = _ChunkedPooled.apply(self, rows, *args, *weights)
         return self.head(pooled).squeeze(-1)
 
     def _pooled(
@@ -310,8 +313,12 @@ class _ChunkedPooled(torch.autograd.Function):
     def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
         net, rows, b = ctx.net, ctx.rows, ctx.b
         args = ctx.saved_tensors
-        params = list(net.parameters())
-        want = ctx.needs_input_grad[2:]  # the inputs after net and rows: the six arguments, the weights
+        want = ctx.needs_input_grad[2:]
+        params = list(
+            net.parameters()
+        )[
+            : len(want) - 6
+        ]  # the weights given as inputs (or none)  # the inputs after net and rows: the six arguments, the weights
         arg_grads: list[list[Tensor]] = [[] for _ in args]
         param_grads: list[Tensor | None] = [None] * len(params)
         for a in range(0, b, rows):
