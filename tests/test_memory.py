@@ -315,3 +315,26 @@ def test_cli_memory_gb_and_env(monkeypatch, tmp_path, capsys):
     monkeypatch.setenv(mem.ENV, "lots")
     assert main(["generate", "dining", "--n", "1", "--out", str(tmp_path / "s.jsonl")]) == 2
     assert "SCENESCORE_MEMORY_GB: expected a number of gigabytes > 0" in capsys.readouterr().err
+
+
+def test_collision_in_chunks_is_identical(monkeypatch):
+    from scenescore.costs import HingeCollision, collision
+
+    objs = [
+        SceneObject(f"o{i}", "box", (0.1, 0.05), (0.2 * (i % 5) - 0.4, 0.2 * (i // 5) - 0.4, 0.3 * i))
+        for i in range(20)
+    ]
+    scene = Scene(objs, ((-1, -1), (1, 1)))
+    prob = Problem(scene, HingeCollision(margin=0.01), movable=["o3", "o7", "o11"])
+    (_, term), *_ = prob.cost.items
+    x = prob.initial(100, torch.Generator().manual_seed(0))
+    full = term(x)
+    xr = x.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(term(xr).sum(), xr)
+    pairs = len(term.support())
+    for rows in (1, 7, 64):
+        monkeypatch.setattr(mem, "CHUNK_BYTES", rows * collision.PAIR_BYTES * pairs)
+        assert torch.equal(term(x), full)
+        xr = x.clone().requires_grad_(True)
+        (gc,) = torch.autograd.grad(term(xr).sum(), xr)
+        assert torch.equal(gc, g)
