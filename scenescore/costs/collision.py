@@ -14,7 +14,7 @@ from torch import Tensor
 
 from ..exact import overlap_depth_exceeds, shapely_core
 from ..geometry import signed_distance, signed_distance_placed
-from ..memory import chunk_rows
+from ..memory import chunk_rows, return_freed_memory
 from .base import (
     ConstraintCost,
     Cost,
@@ -89,6 +89,7 @@ class HingeCollision(ConstraintCost):
         )
         if b <= rows:
             return signed_distance(poses, fp, self._pi, self._pj)
+        return_freed_memory()
         return torch.cat(
             [signed_distance(poses[a : a + rows], fp, self._pi, self._pj) for a in range(0, b, rows)]
         )

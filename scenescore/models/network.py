@@ -21,7 +21,7 @@ from torch.autograd.function import once_differentiable
 
 from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
-from ..memory import chunk_rows
+from ..memory import chunk_rows, return_freed_memory
 
 __all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation", "parameter_count"]
 
@@ -248,6 +248,7 @@ class EnergyNet(nn.Module):
         if b <= rows:
             pooled = self._pooled(*args)
         else:
+            return_freed_memory()
             weights = list(self.parameters()) if weight_grads else []
             pooled = _ChunkedPooled.apply(self, rows, *args, *weights)
         return self.head(pooled).squeeze(-1)
