@@ -6,12 +6,14 @@ import numpy as np
 import torch
 
 from .errors import ConfigError, check_number
+from .memory import check as check_memory
 from .models import ScoreModel
 from .scene import Scene
 
 __all__ = ["energy_grid", "grid_minimum", "MAX_CELLS"]
 
 MAX_CELLS = 4_000_000  # grid points of one heatmap (2000 x 2000)
+CHUNK = 4096  # grid points whose poses are built and evaluated at once (the network chunks further)
 
 
 def energy_grid(
@@ -27,19 +29,26 @@ def energy_grid(
             f"heatmap: resolution {resolution:g} m gives {cells:.3g} grid cells over the bounds "
             f"{scene.bounds}; at most {MAX_CELLS:,} (a coarser resolution)"
         )
+    # float64 per grid point: the meshgrid's x and y, their flat copies, the energies (and the image drawn
+    # from them); the poses are built a chunk at a time
+    check_memory(
+        8 * 8 * cells + 8 * 3 * CHUNK * len(scene),
+        f"heatmap: resolution {resolution:g} m gives {cells:.3g} grid cells over the bounds {scene.bounds}",
+        "the resolution (a larger --resolution, fewer cells)",
+    )
     xs = np.arange(x0 + resolution / 2, x1, resolution)
     ys = np.arange(y0 + resolution / 2, y1, resolution)
     gx, gy = np.meshgrid(xs, ys)
+    fx, fy = gx.ravel(), gy.ravel()
     base = scene.poses()  # a null pose (the moving object's) is filled, then overwritten
     k = scene.index(name)
-    poses = np.repeat(base[None], gx.size, axis=0)
-    poses[:, k, 0], poses[:, k, 1], poses[:, k, 2] = gx.ravel(), gy.ravel(), theta
     fn = model.energy_fn(scene.with_poses(base))
     out = []
     with torch.no_grad():
-        for chunk in range(0, len(poses), 4096):
-            x = torch.as_tensor(poses[chunk : chunk + 4096], dtype=model.dtype)
-            out.append(fn(x).double().numpy())
+        for a in range(0, fx.size, CHUNK):
+            poses = np.repeat(base[None], len(fx[a : a + CHUNK]), axis=0)
+            poses[:, k, 0], poses[:, k, 1], poses[:, k, 2] = fx[a : a + CHUNK], fy[a : a + CHUNK], theta
+            out.append(fn(torch.as_tensor(poses, dtype=model.dtype)).double().numpy())
     return xs, ys, np.concatenate(out).reshape(gx.shape)
 
 

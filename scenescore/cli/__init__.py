@@ -89,6 +89,13 @@ def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None 
     """Options every command has."""
     p.add_argument("--seed", type=SEED, default=seed, help=seed_help or f"random seed (default {seed})")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--memory-gb",
+        type=float,
+        default=None,
+        help="memory budget in GB: larger allocations are refused before they are made "
+        "(default: SCENESCORE_MEMORY_GB, else half of the machine's memory)",
+    )
 
 
 FOLDER_OUTPUTS = {"demo", "experiment"}  # commands whose --out is a folder
@@ -112,6 +119,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
+        from ..memory import budget, set_budget
+
+        set_budget(getattr(args, "memory_gb", None))  # this run's budget; a bad value is an error now
+        budget()
         _check_outputs(args)
         rc = args.func(args)
     except _user_errors() as e:
@@ -124,6 +135,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # the reader went away (``scenescore generate --list | head``)
         sys.stderr.close()
         return 0
+    finally:
+        from ..memory import set_budget
+
+        set_budget(None)
     return int(rc or 0)
 
 

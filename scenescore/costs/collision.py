@@ -14,6 +14,7 @@ from torch import Tensor
 
 from ..exact import overlap_depth_exceeds, shapely_core
 from ..geometry import signed_distance, signed_distance_placed
+from ..memory import chunk_rows, return_freed_memory
 from .base import (
     ConstraintCost,
     Cost,
@@ -27,6 +28,10 @@ from .base import (
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["HingeCollision", "CollisionSpec"]
+
+# bytes one pair of one pose set takes while its signed distance is computed (float64, with the
+# footprints' vertices and the intermediates; measured about 2 KB)
+PAIR_BYTES = 4096
 
 
 class HingeCollision(ConstraintCost):
@@ -71,11 +76,23 @@ class HingeCollision(ConstraintCost):
         self._pj = torch.tensor([p[1] for p in pairs], dtype=torch.long)
 
     def signed_distance(self, poses: Tensor) -> Tensor:
-        """Signed distance per pair ``(B, P)``."""
+        """Signed distance per pair ``(B, P)``; many pose sets (candidates being screened) go in chunks of
+        rows, with the same numbers."""
         poses = self._check(poses)
         if not self._pairs:
             return poses.new_zeros(poses.shape[0], 0)
-        return signed_distance(poses, self.binding.footprints, self._pi, self._pj)
+        fp, b = self.binding.footprints, poses.shape[0]
+        rows = chunk_rows(
+            PAIR_BYTES * len(self._pairs),
+            f"collision {self.name!r}: one pose set of {len(self._pairs)} pairs",
+            "the number of objects or pairs",
+        )
+        if b <= rows:
+            return signed_distance(poses, fp, self._pi, self._pj)
+        return_freed_memory()
+        return torch.cat(
+            [signed_distance(poses[a : a + rows], fp, self._pi, self._pj) for a in range(0, b, rows)]
+        )
 
     def constraints(self, poses: Tensor) -> Tensor:
         return self.signed_distance(poses) - self.margin

@@ -79,7 +79,8 @@ class LearnedEnergy(Cost):
 
         def fn(poses: Tensor) -> Tensor:
             x = with_walls(poses.to(model.dtype), st)
-            return model.net(x, None, None, st.mask, nodes=nodes, round=st.round).to(poses.dtype)
+            e = model.net(x, None, None, st.mask, nodes=nodes, round=st.round, weight_grads=False)
+            return e.to(poses.dtype)
 
         return fn
 

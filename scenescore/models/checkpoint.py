@@ -18,6 +18,7 @@ from safetensors import safe_open
 from safetensors.torch import save as st_save
 from torch import Tensor
 
+from ..memory import check as check_memory
 from ..scene import atomic_write_bytes
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "CheckpointError", "Checkpoint", "read_checkpoint", "write_checkpoint"]
@@ -66,6 +67,12 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
         raise CheckpointError(f"{path}: no such checkpoint file")
     if path.is_dir():
         raise CheckpointError(f"{path}: is a folder; expected a checkpoint file")
+    if path.is_file():  # its weights are read whole, then copied into the network
+        check_memory(
+            2 * path.stat().st_size,
+            f"{path}: loading a checkpoint of {path.stat().st_size:,} bytes",
+            "its size",
+        )
     try:
         with safe_open(str(path), framework="pt") as f:
             meta = f.metadata() or {}

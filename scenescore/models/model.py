@@ -11,10 +11,11 @@ import torch
 from torch import Tensor, nn
 
 from ..encoders import Encoder, make_encoder
+from ..memory import check as check_memory
 from ..scene import Scene
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
-from .network import EnergyConfig, EnergyNet
+from .network import EnergyConfig, EnergyNet, parameter_count
 from .trust import TrustReference
 
 __all__ = ["ScoreModel", "load", "with_walls"]
@@ -61,7 +62,9 @@ class ScoreModel(nn.Module):
         return self.net(poses, feats, sizes, mask, round=rnd)
 
     def energy_fn(self, scene: Scene) -> Callable[[Tensor], Tensor]:
-        """``poses (B, N, 3) -> (B,)`` conditioned on one scene's objects (node embeddings computed once)."""
+        """``poses (B, N, 3) -> (B,)`` conditioned on one scene's objects (node embeddings computed once).
+        For sampling and scoring: a batch evaluated in chunks gives no gradient to the weights (train
+        through :meth:`energy`)."""
         st = self.tensors([scene])
         return self.energy_fn_for(st)
 
@@ -72,7 +75,9 @@ class ScoreModel(nn.Module):
         def fn(poses: Tensor) -> Tensor:
             b = poses.shape[0]
             mask = st.mask.expand(b, -1)
-            return self.net(with_walls(poses, st), None, None, mask, nodes=nodes, round=st.round)
+            return self.net(
+                with_walls(poses, st), None, None, mask, nodes=nodes, round=st.round, weight_grads=False
+            )
 
         return fn
 
@@ -105,6 +110,12 @@ def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:
         cfg = EnergyConfig(**ck.energy_config)
     except (TypeError, ValueError) as e:
         raise CheckpointError(f"{path}: checkpoint metadata is damaged: energy_config: {e}") from None
+    count = parameter_count(cfg)  # the stored weights and the network's own copy, before either is built
+    check_memory(
+        2 * 4 * count,
+        f"{path}: the network it declares ({cfg.describe()}: {count:,} weights)",
+        "the widths it was trained with (hidden, edge_hidden, layers)",
+    )
     with torch.device("meta"):  # the shapes the config declares, without allocating them
         expected = {k: tuple(v.shape) for k, v in EnergyNet(cfg).state_dict().items()}
     stored = {k: tuple(v.shape) for k, v in ck.tensors.items()}

@@ -10,16 +10,20 @@ edge tensors with a padding mask.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
+from torch.autograd.function import once_differentiable
 
 from ..errors import ConfigError, check_number
+from ..memory import check as check_memory
+from ..memory import chunk_rows, return_freed_memory
 
-__all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation"]
+__all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation", "parameter_count"]
 
 Activation = Literal["silu", "softplus", "leaky_relu"]
 
@@ -71,6 +75,31 @@ class EnergyConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def describe(self) -> str:
+        """The widths that memory grows with, for messages."""
+        inner = f", edge_hidden {self.edge_hidden}" if self.edge_hidden is not None else ""
+        return f"hidden {self.hidden}{inner}, {self.layers} layers, embed_dim {self.embed_dim}"
+
+
+def parameter_count(cfg: EnergyConfig) -> int:
+    """The number of weights :class:`EnergyNet` has for ``cfg``, counted without building it."""
+    h, inner = cfg.hidden, (cfg.edge_hidden or cfg.hidden) if cfg.message == "mlp" else cfg.hidden
+    total = cfg.feat_dim * h + h + h * cfg.embed_dim + cfg.embed_dim  # embed
+    d_edge = 0 if cfg.absolute else 4
+    for k in range(cfg.layers):
+        d_in = cfg.embed_dim + 2 + (4 if cfg.absolute else 0) if k == 0 else h
+        total += 2 * d_in * inner + inner + d_edge * inner  # w_i (with bias), w_j, w_e
+        if cfg.message == "mlp":
+            total += inner * h + h  # out
+    return total + h * h + h + h + 1  # head
+
+
+# floats per edge (i, j) of one pose set that evaluating the energy holds at its peak, measured (CPU,
+# float32) and rounded up: the edge features, then per message layer its (N, N, inner) tensors; with a
+# gradient every layer's are kept for the backward pass
+_EDGE_FLOATS = 32
+_LAYER_FLOATS = 16
 
 
 def make_activation(name: str) -> nn.Module:
@@ -165,6 +194,31 @@ class EnergyNet(nn.Module):
             nn.Linear(cfg.hidden, cfg.hidden), make_activation(cfg.activation), nn.Linear(cfg.hidden, 1)
         )
 
+        check_memory(
+            4 * parameter_count(cfg) * torch.empty(0).element_size(),
+            f"energy network: {parameter_count(cfg):,} weights ({cfg.describe()}) with their gradients "
+            "and optimiser state",
+            "hidden, edge_hidden or layers",
+        )
+
+    def row_bytes(self, n: int, grad: bool, itemsize: int = 4) -> int:
+        """Estimated peak bytes of evaluating the energy of one pose set of ``n`` objects (``grad``: with
+        the graph kept for a backward pass); the ``(N, N, inner)`` message tensors dominate."""
+        cfg = self.cfg
+        inner = (cfg.edge_hidden or cfg.hidden) if cfg.message == "mlp" else cfg.hidden
+        per_edge = _EDGE_FLOATS + (cfg.layers * (_LAYER_FLOATS + inner) + 3 * inner if grad else 4 * inner)
+        per_node = cfg.feat_dim + 2 * cfg.embed_dim + 8 * cfg.hidden * cfg.layers
+        return itemsize * (n * n * per_edge + n * per_node)
+
+    def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
+        """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.memory.chunk_rows`)."""
+        return chunk_rows(
+            self.row_bytes(n, grad, itemsize),
+            f"energy network: one pose set of {n} objects ({self.cfg.describe()}"
+            f"{', with its gradient' if grad else ''})",
+            "the number of objects in the scene",
+        )
+
     def node_embedding(self, feats: Tensor, sizes: Tensor) -> Tensor:
         """Pose-independent node features ``(B, N, embed_dim + 2)``."""
         return torch.cat([self.embed(feats), sizes / self.cfg.length_scale], dim=-1)
@@ -172,18 +226,51 @@ class EnergyNet(nn.Module):
     def forward(
         self,
         poses: Tensor,
-        feats: Tensor,
-        sizes: Tensor,
+        feats: Tensor | None,
+        sizes: Tensor | None,
         mask: Tensor | None = None,
         nodes: Tensor | None = None,
         round: Tensor | None = None,
+        weight_grads: bool = True,
     ) -> Tensor:
         """Energy per scene. ``nodes`` may carry a precomputed :meth:`node_embedding` (broadcast over B);
-        ``round (B or 1, N)``: the round objects, whose headings a ``round_invariant`` network ignores."""
+        ``round (B or 1, N)``: the round objects, whose headings a ``round_invariant`` network ignores.
+
+        A batch larger than :meth:`chunk_rows` goes through the message layers in chunks of rows (with a
+        gradient, each chunk is recomputed in the backward pass instead of kept), and the head sees the
+        whole batch: the same numbers as one pass, in bounded memory. The chunked path has first
+        derivatives only (no ``create_graph``); with ``weight_grads=False`` (sampling, which needs the
+        gradient with respect to the poses alone) it gives the weights none."""
+        b, n, _ = poses.shape
+        grad = torch.is_grad_enabled()
+        rows = self.chunk_rows(n, grad, poses.element_size())
+        args = (poses, feats, sizes, mask, nodes, round)
+        if b <= rows:
+            pooled = self._pooled(*args)
+        else:
+            return_freed_memory()
+            weights = list(self.parameters()) if weight_grads else []
+            pooled = _ChunkedPooled.apply(self, rows, *args, *weights)
+        return self.head(pooled).squeeze(-1)
+
+    def _pooled(
+        self,
+        poses: Tensor,
+        feats: Tensor | None,
+        sizes: Tensor | None,
+        mask: Tensor | None,
+        nodes: Tensor | None,
+        round: Tensor | None,
+    ) -> Tensor:
+        """The message layers and the global add pooling: ``(B, hidden)``."""
         b, n, _ = poses.shape
         if mask is None:
             mask = torch.ones(b, n, dtype=torch.bool, device=poses.device)
-        v = self.node_embedding(feats, sizes) if nodes is None else nodes
+        if nodes is None:
+            assert feats is not None and sizes is not None, "EnergyNet: give feats and sizes, or nodes"
+            v = self.node_embedding(feats, sizes)
+        else:
+            v = nodes
         v = v.expand(b, n, v.shape[-1])
         maskf = mask.to(poses.dtype).expand(b, n)
         eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
@@ -204,5 +291,83 @@ class EnergyNet(nn.Module):
             e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range, rnd)
         for layer in self.layers:
             v = layer(v, e, pair)
-        pooled = (v * maskf[..., None]).sum(dim=1)  # global add pooling
-        return self.head(pooled).squeeze(-1)
+        return (v * maskf[..., None]).sum(dim=1)  # global add pooling
+
+
+class _ChunkedPooled(torch.autograd.Function):
+    """:meth:`EnergyNet._pooled` over a batch in chunks of ``rows``: the forward pass keeps no graph; the
+    backward pass recomputes one chunk at a time with its graph and backpropagates through it."""
+
+    @staticmethod
+    def forward(ctx: Any, net: EnergyNet, rows: int, *inputs: Tensor | None) -> Tensor:
+        args = inputs[:6]
+        b = _first(args).shape[0]
+        ctx.net, ctx.rows, ctx.b = net, rows, b
+        ctx.save_for_backward(*args)
+        with torch.no_grad():
+            return torch.cat(
+                [_pooled_of(net, [_rows(t, b, a, a + rows) for t in args]) for a in range(0, b, rows)]
+            )
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
+        net, rows, b = ctx.net, ctx.rows, ctx.b
+        args = ctx.saved_tensors
+        want = ctx.needs_input_grad[2:]
+        params = list(
+            net.parameters()
+        )[
+            : len(want) - 6
+        ]  # the weights given as inputs (or none)  # the inputs after net and rows: the six arguments, the weights
+        arg_grads: list[list[Tensor]] = [[] for _ in args]
+        param_grads: list[Tensor | None] = [None] * len(params)
+        for a in range(0, b, rows):
+            with torch.enable_grad():
+                part = [_rows(t, b, a, a + rows) for t in args]
+                part = [
+                    t.detach().requires_grad_(True) if t is not None and want[k] else t
+                    for k, t in enumerate(part)
+                ]
+                leaves = [t for k, t in enumerate(part) if t is not None and want[k]]
+                leaves += [p for k, p in enumerate(params) if want[6 + k]]
+                if not leaves:
+                    continue
+                out = _pooled_of(net, part)
+                got = list(torch.autograd.grad(out, leaves, grad[a : a + rows], allow_unused=True))
+            for k, t in enumerate(part):
+                if t is not None and want[k]:
+                    g = got.pop(0)
+                    arg_grads[k].append(torch.zeros_like(t) if g is None else g)
+            for k in range(len(params)):
+                if want[6 + k]:
+                    g, prev = got.pop(0), param_grads[k]
+                    if g is not None:
+                        param_grads[k] = g if prev is None else prev + g
+        out_args: list[Tensor | None] = []
+        for k, t in enumerate(args):
+            if t is None or not want[k]:
+                out_args.append(None)
+            elif t.shape[0] == b:
+                out_args.append(torch.cat(arg_grads[k]))
+            else:  # broadcast over the batch: its gradient is the sum over the chunks
+                out_args.append(torch.stack(arg_grads[k]).sum(0))
+        return (None, None, *out_args, *param_grads)
+
+
+def _first(args: Sequence[Tensor | None]) -> Tensor:
+    poses = args[0]
+    assert poses is not None
+    return poses
+
+
+def _pooled_of(net: EnergyNet, args: Sequence[Tensor | None]) -> Tensor:
+    """``net._pooled`` of the six arguments of :meth:`EnergyNet.forward` (``poses`` first, never None)."""
+    return net._pooled(_first(args), *args[1:])
+
+
+def _rows(t: Tensor | None, b: int, a: int, z: int) -> Tensor | None:
+    """Rows ``a:z`` of a per-row input of a batch of ``b`` (inputs of one row broadcast: kept whole)."""
+    if t is None or t.shape[0] != b:
+        return t
+    return t[a:z]

@@ -25,6 +25,7 @@ from torch import Tensor
 
 from ..costs.base import stack_sums
 from ..errors import ConfigError, check_number
+from ..memory import check as check_memory
 from ..problem import FEASIBILITY_TOL, Problem, ProblemError
 from ..sampling import SAMPLING, LangevinConfig, langevin, screen
 from .base import StageSolver, torch_threads
@@ -33,6 +34,11 @@ from .result import Result, Status, make_result
 
 MAX_PARTICLES = 65_536  # more is a typo, not a plan: memory grows with particles x objects^2
 MAX_CANDIDATES = 1_000_000
+# float64 copies of the (rows, N, 3) poses alive at once: candidate draws (the base poses, the uniform
+# draws and their parts, the mix), and particles in the chain (poses, gradient, noise, step, projections,
+# the costs' own copies); the energy network's working set is bounded by its own chunking
+DRAW_COPIES = 8
+STATE_COPIES = 24
 
 __all__ = ["LangevinOptions", "LangevinSolver"]
 
@@ -115,12 +121,32 @@ class LangevinSolver(StageSolver):
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         return self._run([problem], init, seed)[0]
 
+    def check_memory(self, problems: Sequence[Problem], init_rows: int | None = None) -> None:
+        """Raise :class:`~scenescore.memory.MemoryBudgetError` before a population too large for the
+        memory budget is drawn: ``candidates`` or ``particles`` per problem times its objects."""
+        o, n, k = self.options, problems[0].n, len(problems)
+        scenes = f" (x {k} problems)" if k > 1 else ""
+        rows = o.particles if init_rows is None else init_rows
+        if init_rows is None and o.candidates > o.particles:
+            check_memory(
+                DRAW_COPIES * 8 * 3 * k * o.candidates * n,
+                f"langevin: {o.candidates} candidates x {n} objects{scenes}",
+                "candidates",
+            )
+        check_memory(
+            STATE_COPIES * 8 * 3 * k * rows * n,
+            f"langevin: {rows} particles x {n} objects{scenes}",
+            "particles" if init_rows is None else "the number of initial pose sets",
+        )
+
     def _run(self, problems: list[Problem], init: Tensor | list[Tensor] | None, seed: int) -> list[Result]:
         o, cfg = self.options, self.options.chain
         t0 = time.perf_counter()
         n = problems[0].n
         if any(p.n != n for p in problems):
             raise ProblemError("langevin: problems solved together must have the same number of objects")
+        rows = None if init is None else max(len(x) for x in init) if isinstance(init, list) else len(init)
+        self.check_memory(problems, rows)
         gen = torch.Generator().manual_seed(int(seed))
         starts = []
         for k, p in enumerate(problems):

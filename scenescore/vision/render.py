@@ -19,6 +19,7 @@ from typing import cast
 import cv2
 import numpy as np
 
+from ..memory import check as check_memory
 from ..scene import Bounds, Scene, SceneError, SceneObject, atomic_write_bytes, atomic_write_text
 from .sprites import sprite_parts
 
@@ -101,6 +102,25 @@ def _paint_object(
 
 
 MAX_PIXELS = 64_000_000  # one image: 8000 x 8000, about 200 MB with its masks
+# bytes per pixel: the RGB image and the owner labels (4), plus one mask byte per object; per pixel of
+# an object's window, painted at _SUPERSAMPLE^2 sub-pixels: colours, mask, float sums and coverage
+_IMAGE_BYTES = 3 + 4
+_WINDOW_BYTES = _SUPERSAMPLE**2 * (3 + 1 + 12 + 8)
+# the vision pipeline's working set per pixel of an image it reads (segmentation's float maps and labels)
+PIPELINE_BYTES = 64
+
+
+def check_image_memory(scene: Scene, ppm: float, shape: tuple[int, int]) -> None:
+    """Raise :class:`~scenescore.memory.MemoryBudgetError` before drawing ``scene`` at ``ppm`` would
+    exceed the memory budget (the image, one mask per object, the largest object's supersampled window)."""
+    pixels = shape[0] * shape[1]
+    reach = max((math.hypot(*o.size) for o in scene.objects if o.pose is not None), default=0.0)
+    window = min((reach * ppm + 5) ** 2, float(pixels))
+    check_memory(
+        pixels * (_IMAGE_BYTES + len(scene)) + window * _WINDOW_BYTES,
+        f"render: ppm {ppm:g} gives a {shape[1]} x {shape[0]} image of {len(scene)} objects",
+        "the ppm (pixels per metre)",
+    )
 
 
 def render_scene(
@@ -124,6 +144,7 @@ def render_scene(
             f"render_scene: ppm {ppm:g} gives a {shape[1]} x {shape[0]} image for bounds {scene.bounds}; "
             f"at most {MAX_PIXELS:,} pixels (lower the ppm)"
         )
+    check_image_memory(scene, ppm, shape)
     image = np.empty((*shape, 3), np.uint8)
     image[:] = np.asarray(background, dtype=np.uint8)
     owner = np.full(shape, -1, dtype=np.int32)
@@ -171,12 +192,37 @@ def write_image(path: str | os.PathLike, image: np.ndarray) -> None:
     atomic_write_bytes(path, buf.tobytes())
 
 
+def png_size(path: str | os.PathLike) -> tuple[int, int] | None:
+    """``(width, height)`` from a PNG file's header, without decoding it; None for other files."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(24)
+    except OSError:
+        return None
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file as ``HxWx3`` uint8 RGB (an alpha channel is dropped)."""
+    """Read an image file as ``HxWx3`` uint8 RGB (an alpha channel is dropped). A PNG's size is checked
+    against the memory budget from its header, before it is decoded; any image's once decoded."""
+    size = png_size(path)
+    if size is not None:
+        _check_read(path, *size)
     arr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if arr is None:
         raise SceneError(f"{path}: not a readable image file")
+    _check_read(path, arr.shape[1], arr.shape[0])
     return cv2.cvtColor(arr, cv2.COLOR_BGR2RGB)
+
+
+def _check_read(path: str | os.PathLike, w: int, h: int) -> None:
+    check_memory(
+        w * h * PIPELINE_BYTES,
+        f"{path}: a {w} x {h} image through the vision pipeline",
+        "the image's size (scale it down, and the ppm with it)",
+    )
 
 
 MASK_PREVIEW = ".masks-preview.png"  # the coloured view of a 16-bit mask image: not a scene image

@@ -1,0 +1,340 @@
+"""The memory budget: parsed from the environment or --memory-gb, checked before large allocations with
+an error that says what to lower; the energy evaluated in chunks gives the same numbers as in one pass."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+import scenescore.memory as mem
+from scenescore.cli import main
+from scenescore.costs import Bounds
+from scenescore.encoders import FootprintEncoder
+from scenescore.errors import ConfigError
+from scenescore.memory import MemoryBudgetError
+from scenescore.models import ScoreModel, load
+from scenescore.models.network import EnergyConfig, EnergyNet, parameter_count
+from scenescore.placement import PLACE, place
+from scenescore.problem import Problem
+from scenescore.scenarios import DiningScenario
+from scenescore.scene import Scene, SceneObject
+from scenescore.solvers.langevin import LangevinSolver
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    torch.set_num_threads(1)
+
+
+@pytest.fixture
+def model():
+    torch.manual_seed(0)
+    return ScoreModel.create(FootprintEncoder(), walls=True, edge_range=3.0, round_invariant=True)
+
+
+def tiny_budget(monkeypatch, gb: float = 0.001) -> None:
+    monkeypatch.setenv(mem.ENV, str(gb))
+
+
+# -- the budget -------------------------------------------------------------------------------------
+
+
+def test_budget_default_is_half_the_machine(monkeypatch):
+    monkeypatch.delenv(mem.ENV, raising=False)
+    limit, source = mem.budget()
+    assert limit == int(mem.total_memory() * 0.5)
+    assert mem.ENV in source and "of the machine's" in source
+
+
+def test_budget_from_env_and_override(monkeypatch):
+    monkeypatch.setenv(mem.ENV, " 2.5 ")
+    assert mem.budget() == (2_500_000_000, mem.ENV)
+    mem.set_budget(0.5)
+    try:
+        assert mem.budget() == (500_000_000, "--memory-gb")
+    finally:
+        mem.set_budget(None)
+    assert mem.budget_bytes() == 2_500_000_000
+
+
+@pytest.mark.parametrize("bad", ["abc", "-1", "0", "nan", "inf", "1e400", "2GB"])
+def test_malformed_env_is_a_clear_error(monkeypatch, bad):
+    monkeypatch.setenv(mem.ENV, bad)
+    with pytest.raises(
+        ConfigError, match=rf"SCENESCORE_MEMORY_GB: expected a number of gigabytes > 0 .*got '{bad}'"
+    ):
+        mem.budget()
+
+
+@pytest.mark.parametrize("bad", [-1.0, 0, math.nan, True])
+def test_malformed_override_is_a_clear_error(bad):
+    with pytest.raises(ConfigError, match="--memory-gb: expected a number of gigabytes > 0"):
+        mem.set_budget(bad)
+    assert mem.budget()[1] != "--memory-gb"
+
+
+def test_check_message_says_what_budget_and_what_to_lower(monkeypatch):
+    tiny_budget(monkeypatch, 1)
+    mem.check(0.9e9, "x", "y")  # within
+    with pytest.raises(MemoryBudgetError) as e:
+        mem.check(5.4e9, "langevin: 100 particles x 12 objects", "particles")
+    msg = str(e.value)
+    assert msg == (
+        "langevin: 100 particles x 12 objects would need ~5.4 GB, over the memory budget of 1 GB "
+        "(SCENESCORE_MEMORY_GB); lower particles"
+    )
+    assert isinstance(e.value, ValueError)
+
+
+def test_chunk_rows(monkeypatch):
+    monkeypatch.delenv(mem.ENV, raising=False)
+    assert mem.chunk_rows(mem.CHUNK_BYTES // 10, "w", "l") == 10
+    assert mem.chunk_rows(mem.CHUNK_BYTES * 3, "w", "l") == 1  # at least one row
+    tiny_budget(monkeypatch, 0.008)  # an eighth of it per chunk: 1 MB
+    assert mem.chunk_rows(1e5, "w", "l") == 10
+    with pytest.raises(MemoryBudgetError, match="one row would need ~0.01 GB.*lower l"):
+        mem.chunk_rows(1e7, "one row", "l")
+
+
+# -- checks at each boundary ----------------------------------------------------------------------
+
+
+def small_problem(n: int = 10) -> Problem:
+    objs = [SceneObject(f"o{i}", "box", (0.05, 0.05), None) for i in range(n)]
+    return Problem(Scene(objs, ((-1, -1), (1, 1))), Bounds())
+
+
+def test_absurd_particles_and_candidates_are_refused_before_drawing(monkeypatch):
+    tiny_budget(monkeypatch)
+    with pytest.raises(
+        MemoryBudgetError, match=r"langevin: 60000 particles x 10 objects would need .*lower particles"
+    ):
+        LangevinSolver(particles=60000, steps=1).solve(small_problem())
+    with pytest.raises(
+        MemoryBudgetError, match=r"langevin: 1000000 candidates x 10 objects .*lower candidates"
+    ):
+        LangevinSolver(particles=4, candidates=1_000_000, steps=1).solve(small_problem())
+    LangevinSolver(particles=4, steps=1).solve(small_problem())  # a small population fits
+
+
+def test_heatmap_grid_over_the_budget(monkeypatch, model):
+    from scenescore.heatmap import energy_grid
+
+    scene = DiningScenario().generate(1, 0)[0]
+    tiny_budget(monkeypatch)
+    with pytest.raises(
+        MemoryBudgetError,
+        match=r"heatmap: resolution 0.001 m gives 1.44e\+06 grid cells.*lower the resolution",
+    ):
+        energy_grid(model, scene, "bowl_0", resolution=0.001)
+
+
+def test_heatmap_unchanged_by_chunking(monkeypatch, model):
+    import scenescore.heatmap as hm
+
+    scene = DiningScenario().generate(1, 0)[0]
+    xs, ys, e = hm.energy_grid(model, scene, "bowl_0", resolution=0.05)
+    monkeypatch.setattr(mem, "CHUNK_BYTES", 3 * model.net.row_bytes(len(scene) + 4, False))
+    xs2, ys2, e2 = hm.energy_grid(model, scene, "bowl_0", resolution=0.05)
+    assert np.array_equal(e, e2) and np.array_equal(xs, xs2) and np.array_equal(ys, ys2)
+
+
+def test_render_ppm_over_the_budget(monkeypatch):
+    from scenescore.vision import render_scene
+
+    scene = DiningScenario().generate(1, 0)[0]
+    tiny_budget(monkeypatch, 0.01)
+    with pytest.raises(
+        MemoryBudgetError, match=r"render: ppm 5000 gives a 6000 x 6000 image of 8 objects.*lower the ppm"
+    ):
+        render_scene(scene, ppm=5000)
+    render_scene(scene, ppm=50)  # small enough
+
+
+def test_large_png_refused_from_its_header(monkeypatch, tmp_path):
+    import zlib
+
+    from scenescore.vision.render import read_image
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
+
+    w = h = 40_000  # a few hundred bytes on disk, 4.8 GB decoded
+    ihdr = w.to_bytes(4, "big") + h.to_bytes(4, "big") + bytes([8, 2, 0, 0, 0])
+    png = (
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b"")
+    )
+    path = tmp_path / "bomb.png"
+    path.write_bytes(png)
+    tiny_budget(monkeypatch, 1)
+    with pytest.raises(
+        MemoryBudgetError, match=r"bomb.png: a 40000 x 40000 image through the vision pipeline"
+    ):
+        read_image(path)
+
+
+def test_checkpoint_declaring_huge_widths_is_refused_before_building(tmp_path, model):
+    from scenescore.models.checkpoint import write_checkpoint
+
+    cfg = {**model.config.to_dict(), "hidden": 8192, "edge_hidden": 8192, "layers": 64}
+    path = tmp_path / "wide.ckpt"
+    write_checkpoint(path, model.net.state_dict(), cfg, {"name": "footprint", "config": {}}, {})
+    count = parameter_count(EnergyConfig(**cfg))
+    assert count > 10**10
+    # the default budget (half of this machine) is far below 80 GB of weights
+    with pytest.raises(
+        MemoryBudgetError,
+        match=rf"wide.ckpt: the network it declares \(hidden 8192, edge_hidden 8192, 64 layers.*{count:,} weights\).*lower the widths",
+    ):
+        load(path)
+
+
+def test_parameter_count_matches_the_network():
+    for kw in (
+        {},
+        {"hidden": 16, "edge_hidden": 24, "layers": 2},
+        {"message": "linear", "embed_dim": 8},
+        {"absolute": True, "layers": 1},
+    ):
+        cfg = EnergyConfig(feat_dim=7, **kw)
+        with torch.device("meta"):
+            net = EnergyNet(cfg)
+        assert parameter_count(cfg) == sum(p.numel() for p in net.parameters()), kw
+
+
+def test_network_too_wide_to_build(monkeypatch):
+    tiny_budget(monkeypatch, 0.001)
+    with pytest.raises(MemoryBudgetError, match=r"energy network: .* weights \(hidden 1024.*lower hidden"):
+        EnergyNet(EnergyConfig(feat_dim=4, hidden=1024))
+
+
+def test_scene_too_large_for_one_pose_set(monkeypatch, model):
+    objs = [
+        SceneObject(f"o{i}", "box", (0.01, 0.01), (0.02 * (i % 40), 0.02 * (i // 40), 0.0))
+        for i in range(400)
+    ]
+    scene = Scene(objs, ((-0.1, -0.1), (1, 1)))
+    fn = model.energy_fn(scene)
+    tiny_budget(monkeypatch, 0.01)
+    with pytest.raises(
+        MemoryBudgetError, match=r"energy network: one pose set of 404 objects .*lower the number of objects"
+    ):
+        with torch.no_grad():
+            fn(torch.as_tensor(scene.poses(), dtype=torch.float32)[None])
+
+
+# -- chunked evaluation: the same numbers --------------------------------------------------------
+
+
+def test_chunked_energy_and_gradient_are_identical(monkeypatch, model):
+    scene = DiningScenario(settings=4).generate(1, 0)[0]
+    fn = model.energy_fn(scene)
+    n = len(scene) + 4  # with the walls
+    x = torch.randn(50, len(scene), 3, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        e = fn(x)
+    xr = x.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(fn(xr).sum(), xr)
+    for rows in (1, 7, 49):
+        monkeypatch.setattr(mem, "CHUNK_BYTES", rows * model.net.row_bytes(n, False))
+        assert model.net.chunk_rows(n, False) == rows
+        with torch.no_grad():
+            assert torch.equal(fn(x), e)
+        monkeypatch.setattr(mem, "CHUNK_BYTES", rows * model.net.row_bytes(n, True))
+        xr = x.clone().requires_grad_(True)
+        (gc,) = torch.autograd.grad(fn(xr).sum(), xr)
+        assert torch.equal(gc, g), rows
+
+
+def test_chunked_training_gradients_match(monkeypatch, model):
+    """Through the chunked path the weights get their gradients too (summed over chunks: close, not
+    bit-equal)."""
+    scenes = DiningScenario().generate(6, 0)
+    st = model.tensors(scenes)
+
+    def grads():
+        model.zero_grad()
+        x = st.poses.clone().requires_grad_(True)
+        e = model.energy(x, st)
+        (e**2).sum().backward()
+        return e.detach(), [p.grad.clone() for p in model.parameters()]
+
+    e, g = grads()
+    monkeypatch.setattr(mem, "CHUNK_BYTES", 2 * model.net.row_bytes(st.poses.shape[1], True))
+    e2, g2 = grads()
+    assert torch.equal(e, e2)
+    for a, b in zip(g, g2):
+        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-6)
+
+
+def test_placement_identical_when_chunked(monkeypatch, model):
+    from dataclasses import replace
+
+    scene = DiningScenario(settings=3).generate(1, 2)[0]
+    k = scene.index("bowl_1")
+    q = Scene(
+        [*scene.objects[:k], replace(scene.objects[k], pose=None), *scene.objects[k + 1 :]], scene.bounds
+    )
+    opts = replace(PLACE, particles=16, candidates=64, chain=replace(PLACE.chain, steps=5, final_descent=2))
+    a = place(model, q, opts, seed=3)
+    monkeypatch.setattr(mem, "CHUNK_BYTES", 3 * model.net.row_bytes(len(q) + 4, True))
+    b = place(model, q, opts, seed=3)
+    assert np.array_equal(a.poses(), b.poses())
+
+
+# -- the command line -----------------------------------------------------------------------------
+
+
+def test_cli_memory_gb_and_env(monkeypatch, tmp_path, capsys):
+    out = tmp_path / "imgs"
+    rc = main(
+        [
+            "generate",
+            "dining",
+            "--n",
+            "1",
+            "--images",
+            str(out),
+            "--ppm",
+            "5000",
+            "--memory-gb",
+            "0.05",
+            "--quiet",
+        ]
+    )
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1
+    assert "render: ppm 5000 gives a 6000 x 6000 image" in err and "(--memory-gb); lower the ppm" in err
+    assert (
+        main(["generate", "dining", "--n", "1", "--out", str(tmp_path / "s.jsonl"), "--memory-gb", "-2"]) == 2
+    )
+    assert "--memory-gb: expected a number of gigabytes > 0" in capsys.readouterr().err
+    monkeypatch.setenv(mem.ENV, "lots")
+    assert main(["generate", "dining", "--n", "1", "--out", str(tmp_path / "s.jsonl")]) == 2
+    assert "SCENESCORE_MEMORY_GB: expected a number of gigabytes > 0" in capsys.readouterr().err
+
+
+def test_collision_in_chunks_is_identical(monkeypatch):
+    from scenescore.costs import HingeCollision, collision
+
+    objs = [
+        SceneObject(f"o{i}", "box", (0.1, 0.05), (0.2 * (i % 5) - 0.4, 0.2 * (i // 5) - 0.4, 0.3 * i))
+        for i in range(20)
+    ]
+    scene = Scene(objs, ((-1, -1), (1, 1)))
+    prob = Problem(scene, HingeCollision(margin=0.01), movable=["o3", "o7", "o11"])
+    (_, term), *_ = prob.cost.items
+    x = prob.initial(100, torch.Generator().manual_seed(0))
+    full = term(x)
+    xr = x.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(term(xr).sum(), xr)
+    pairs = len(term.support())
+    for rows in (1, 7, 64):
+        monkeypatch.setattr(mem, "CHUNK_BYTES", rows * collision.PAIR_BYTES * pairs)
+        assert torch.equal(term(x), full)
+        xr = x.clone().requires_grad_(True)
+        (gc,) = torch.autograd.grad(term(xr).sum(), xr)
+        assert torch.equal(gc, g)
