@@ -49,6 +49,19 @@ def _load(path: str):
     return load_problem(path)
 
 
+def _warn_unused_options(path: str, options: dict, chains: list[str]) -> None:
+    """Say on stderr which of the file's solver options the chosen chain(s) will not use."""
+    import sys
+
+    used = {stage.strip() for c in chains for stage in c.split(">")}
+    unused = sorted(set(options) - used)
+    if unused:
+        print(
+            f"warning: {path}: options for {', '.join(unused)} are not used by {' / '.join(chains)}",
+            file=sys.stderr,
+        )
+
+
 def run_solve(args: argparse.Namespace) -> int:
     from ..scene import atomic_write_text
     from ..solvers import solve
@@ -56,6 +69,7 @@ def run_solve(args: argparse.Namespace) -> int:
     lp = _load(args.problem)
     solver = args.solver or lp.solver
     seed = lp.seed if args.seed < 0 else args.seed
+    _warn_unused_options(args.problem, lp.options, [solver])
     if not args.quiet:
         print(f"solving {args.problem} with {solver} (seed {seed})")
     r = solve(lp.problem, solver, seed=seed, options=lp.options)
@@ -101,6 +115,7 @@ def run_compare(args: argparse.Namespace) -> int:
     solvers = _solver_list(args.solvers)
     if args.seeds < 1:
         raise UserError(f"--seeds: expected a number >= 1, got {args.seeds}")
+    _warn_unused_options(args.problem, lp.options, list(solvers))
     cmp = compare(
         lp.problem,
         solvers,
