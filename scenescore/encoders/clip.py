@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..scene import SceneError, SceneObject
-from ..vision.crop import CROP_FILL, Crop
+from ..vision.crop import Crop
 from ..vision.render import DEFAULT_PPM
 from .image import object_crop_for
 
@@ -144,12 +144,7 @@ class ClipEncoder:
     def encode_crop(self, crop: Crop) -> np.ndarray:
         from PIL import Image
 
-        h, w = crop.rgb.shape[:2]
-        side = max(h, w)
-        sq = np.empty((side, side, 3), np.uint8)
-        sq[:] = np.asarray(CROP_FILL, np.uint8)
-        r0, c0 = (side - h) // 2, (side - w) // 2
-        sq[r0 : r0 + h, c0 : c0 + w] = crop.rgb
+        sq = crop.square()
         x = self.preprocess(Image.fromarray(sq)).unsqueeze(0).to(self.device)
         with self._torch.no_grad():
             f = self.model.encode_image(x)[0].float()

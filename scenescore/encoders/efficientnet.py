@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from ..scene import SceneError, SceneObject
-from ..vision.crop import CROP_FILL, Crop
+from ..vision.crop import Crop
 from ..vision.render import DEFAULT_PPM
 from .image import object_crop_for
 
@@ -62,12 +62,7 @@ def shipped_weights() -> str:
 def _views(crop: Crop, blur: float) -> list[np.ndarray]:
     """The crop padded to a square of ``CROP_FILL`` and blurred, with its rotations that the mask cannot
     tell apart."""
-    h, w = crop.rgb.shape[:2]
-    side = max(h, w)
-    sq = np.empty((side, side, 3), np.uint8)
-    sq[:] = np.asarray(CROP_FILL, np.uint8)
-    r0, c0 = (side - h) // 2, (side - w) // 2
-    sq[r0 : r0 + h, c0 : c0 + w] = crop.rgb
+    sq = crop.square()
     if blur > 0:
         sq = cv2.GaussianBlur(sq, (0, 0), blur)
     if crop.symmetry == 1:

@@ -35,6 +35,16 @@ class Crop:
     symmetry: int  # as MomentPose.symmetry
     alpha: np.ndarray | None = None  # h x w float coverage (the mask before thresholding)
 
+    def square(self) -> np.ndarray:
+        """The RGB crop centred on a square of :data:`CROP_FILL` as wide as its longer side."""
+        h, w = self.rgb.shape[:2]
+        side = max(h, w)
+        sq = np.empty((side, side, 3), np.uint8)
+        sq[:] = np.asarray(CROP_FILL, np.uint8)
+        r0, c0 = (side - h) // 2, (side - w) // 2
+        sq[r0 : r0 + h, c0 : c0 + w] = self.rgb
+        return sq
+
 
 def rectify_crop(
     image: np.ndarray,
