@@ -4,14 +4,14 @@ Every known pose is the current state. :func:`tidy` minimises the learned energy
 moving objects from where they are (:class:`~scenescore.costs.Displacement` and
 :class:`~scenescore.costs.MoveCount`), with non-overlap, bounds and, when given, reach:
 
-1. *Proposals*: each movable object is placed anew by the learned energy with the others where they
-   are (the missing-object placement, every object at once in one batched chain): where it would go.
-2. *Sampling*: candidates are the current state with one or two objects moved to a proposal (or
-   redrawn uniformly); the best by the whole cost start a short ``langevin`` chain near the current
-   state, whose best particle seeds a refinement (``osqp``).
-3. *Pruning*: objects that moved less than ``move_tol`` go back to where they are; each remaining move
-   is undone when that lowers the cost; a last refinement runs over the moved objects alone, so
-   every other object is exactly where it was.
+1. *Selection*: a forward selection of the objects to move. Each round re-places the objects chosen so
+   far together with one more movable object (the missing-object placement, with the others where
+   they are; every candidate of every scene in one batched chain per size) and keeps the set whose
+   best placement lowers the whole cost most; it stops when no further object lowers it. Re-placing
+   the chosen set together lets two objects trade places.
+2. *Pruning*: objects that moved less than ``move_tol`` go back to where they are; each remaining move
+   is undone when that lowers the cost; a last refinement (``osqp``) runs over the moved objects
+   alone, so every other object is exactly where it was.
 
 :func:`plan_moves` then orders the moves so that each target is free of every object still in place
 when the object is put down (the exact check), parking an object at a buffer pose where the moves
@@ -31,12 +31,13 @@ import numpy as np
 import torch
 
 from .costs import Bounds, Cost, Displacement, HingeCollision, LearnedEnergy, MoveCount, ReachLimit
+from .errors import check_number
 from .models import ScoreModel
 from .placement import OVERLAP_WEIGHT, non_overlap
 from .problem import FEASIBILITY_TOL, Problem, ProblemError
-from .sampling import PLACEMENT, LangevinConfig, screen
+from .sampling import PLACEMENT, screen
 from .scene import Scene, atomic_write_text, wrap_angle
-from .solvers import Result, make_result, solve
+from .solvers import Result, Status, make_result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
 
 __all__ = [
@@ -50,13 +51,21 @@ __all__ = [
     "tidy",
     "tidy_many",
     "tidy_problem",
+    "COUNT",
+    "calibrate",
+    "count_weight",
+    "move_gains",
     "plan_moves",
     "validate_plan",
     "blocking",
 ]
 
-#: the default effort weight: energy per length scale of displacement (free of units)
+#: the default effort weight: multiplies the count and displacement weights of :class:`TidyOptions`
 EFFORT = 1.0
+#: energy per moved object when the model has no calibrated move gain (:func:`calibrate`)
+COUNT = 0.3
+#: the quantile of the move gains on scenes taken as right that a move must beat (:func:`calibrate`)
+GAIN_QUANTILE = 0.75
 
 Reach = tuple[tuple[float, float], float]  # ((x, y) of the robot's base, radius in metres)
 
@@ -69,18 +78,30 @@ class TidyError(ProblemError):
 class TidyOptions:
     """Settings of :func:`tidy` (the effort weight is an argument of its own)."""
 
-    count: float = 1.0  # at effort 1: energy per moved object (the smooth count's weight)
+    # at effort 1: energy per moved object (the smooth count's weight); None: the model's calibrated
+    # move gain (:func:`calibrate`, stored in the checkpoint), else COUNT
+    count: float | None = None
     distance: float = 0.1  # at effort 1: energy per length scale of displacement
-    delta: float = 0.01  # metres: the displacement is quadratic within this, then linear
-    sigma: float = 0.02  # metres: a move this long counts as half a moved object
-    move_tol: float = 0.01  # metres: an object that moved less than this stays where it is
-    proposals: int = 8  # proposals kept per object (the best of its placement particles)
-    candidates: int = 512  # candidate states screened by cost
-    particles: int = 16  # of which the best start the chain
-    chain: LangevinConfig = replace(PLACEMENT, steps=20, step_init=0.02, final_descent=10)
+    delta: float = 0.1  # length scales: the displacement is quadratic within this, then linear
+    sigma: float = 0.05  # length scales: a move this long counts as half a moved object
+    move_tol: float = 0.1  # length scales: an object that moved less than this stays where it is
+    max_moves: int | None = None  # objects the forward selection may add (None: every movable one)
+    gain_tol: float = 1e-6  # a step of the selection must lower the whole cost by more than this
     propose: LangevinOptions = LangevinOptions(
-        particles=8, candidates=128, chain=replace(PLACEMENT, steps=30, final_descent=10)
+        particles=16, candidates=256, chain=replace(PLACEMENT, steps=40, final_descent=10)
     )
+
+    def __post_init__(self) -> None:
+        own = "TidyOptions"
+        if self.count is not None:
+            check_number(own, "count", self.count, 0.0, math.inf)
+        check_number(own, "distance", self.distance, 0.0, math.inf)
+        for k in ("delta", "sigma", "move_tol"):
+            check_number(own, k, getattr(self, k), 0.0, math.inf, open_lo=True)
+        if self.max_moves is not None:
+            check_number(own, "max_moves", self.max_moves, 0, 1_000_000, integer=True)
+        check_number(own, "gain_tol", self.gain_tol, 0.0, math.inf)
+
     refine: str | None = "osqp"  # the refinement of the moved objects after pruning (None: none)
     refine_options: dict[str, Any] = field(default_factory=lambda: {"max_iter": 40})
 
@@ -140,6 +161,7 @@ class TidyResult:
     effort: float
     seed: int
     warnings: list[str] = field(default_factory=list)
+    count: float = 0.0  # energy one moved object costs (the count weight times the effort)
 
     @property
     def total_displacement(self) -> float:
@@ -169,6 +191,7 @@ class TidyResult:
         r = self.result
         return {
             "effort": self.effort,
+            "move_cost": self.count,
             "seed": self.seed,
             "moved": list(self.moved),
             "total_displacement": self.total_displacement,
@@ -231,9 +254,10 @@ def tidy_problem(
     length = model.config.length_scale
     cost: Cost = LearnedEnergy(model)
     if effort * o.distance > 0:
-        cost = cost + (effort * o.distance / length) * Displacement(delta=o.delta, weights=weights)
-    if effort * o.count > 0:
-        cost = cost + effort * o.count * MoveCount(sigma=o.sigma, weights=weights)
+        cost = cost + (effort * o.distance / length) * Displacement(delta=o.delta * length, weights=weights)
+    count = count_weight(model, o)
+    if effort * count > 0:
+        cost = cost + effort * count * MoveCount(sigma=o.sigma * length, weights=weights)
     hinge = non_overlap(model, scene, names)
     if hinge is not None:
         cost = cost + (OVERLAP_WEIGHT / length) * hinge
@@ -245,66 +269,6 @@ def tidy_problem(
 
 
 # -- solving --------------------------------------------------------------------------------------------
-
-
-def _proposals(
-    model: ScoreModel, scenes: list[Scene], movable: list[list[str]], o: TidyOptions, seed: int
-) -> list[dict[str, np.ndarray]]:
-    """Where each movable object would go if it were missing: the best ``o.proposals`` particles of its
-    placement by the learned energy alone, the others where they are (one batched chain per size)."""
-    from .placement import placement_problem
-
-    jobs = [(k, n) for k, names in enumerate(movable) for n in names]
-    problems = [placement_problem(model, scenes[k].without(n), energy_only=True) for k, n in jobs]
-    out: list[dict[str, np.ndarray]] = [{} for _ in scenes]
-    solver = LangevinSolver(o.propose)
-    for idx in _by_size(problems):
-        results = solver.solve_many([problems[j] for j in idx], seed=seed)
-        for j, r in zip(idx, results):
-            k, n = jobs[j]
-            assert r.samples is not None and r.sample_costs is not None
-            order = np.argsort(r.sample_costs)[: o.proposals]
-            out[k][n] = r.samples[order, scenes[k].index(n)]
-    return out
-
-
-def _by_size(problems: Sequence[Problem]) -> list[list[int]]:
-    """Indices of ``problems`` grouped by their number of objects (one batched chain each)."""
-    groups: dict[int, list[int]] = {}
-    for j, p in enumerate(problems):
-        groups.setdefault(p.n, []).append(j)
-    return list(groups.values())
-
-
-def _candidates(
-    scene: Scene,
-    current: np.ndarray,
-    proposals: dict[str, np.ndarray],
-    o: TidyOptions,
-    gen: np.random.Generator,
-) -> torch.Tensor:
-    """The current state, each object at each proposal, then random pairs of proposals and a few
-    uniform redraws, ``o.candidates`` in all."""
-    names = list(proposals)
-    rows = [current]
-    for n, props in proposals.items():
-        i = scene.index(n)
-        for p in props:
-            x = current.copy()
-            x[i] = p
-            rows.append(x)
-    lo, hi = np.asarray(scene.bounds[0]), np.asarray(scene.bounds[1])
-    while len(rows) < o.candidates:
-        x = current.copy()
-        for n in gen.choice(names, size=min(2, len(names)), replace=False):
-            i = scene.index(str(n))
-            if gen.random() < 0.8:
-                x[i] = proposals[str(n)][gen.integers(len(proposals[str(n)]))]
-            else:
-                x[i, :2] = lo + gen.random(2) * (hi - lo)
-                x[i, 2] = gen.uniform(-math.pi, math.pi)
-        rows.append(x)
-    return torch.as_tensor(np.stack(rows), dtype=torch.float64)
 
 
 def _moves(scene: Scene, x: np.ndarray) -> np.ndarray:
@@ -340,7 +304,7 @@ def tidy_many(
     reach: Reach | None = None,
     options: TidyOptions | None = None,
 ) -> list[TidyResult]:
-    """:func:`tidy` for several scenes, their sampling stages batched (one chain per number of objects)."""
+    """:func:`tidy` for several scenes, their placements batched (one chain per number of objects)."""
     o = options or TidyOptions()
     scenes = list(scenes)
     for scene in scenes:
@@ -350,23 +314,143 @@ def tidy_many(
                 "where they are (fill unknown poses first with `scenescore place`)"
             )
     problems = [tidy_problem(model, s, effort, stay, weights, reach, o) for s in scenes]
-    proposals = _proposals(model, scenes, [p.movable for p in problems], o, seed)
-    gen = np.random.default_rng(seed)
-    starts = []
-    for s, p, props in zip(scenes, problems, proposals):
-        cands = _candidates(s, s.poses(), props, o, gen)
-        starts.append(screen(p.cost, cands, min(o.particles, len(cands))))
-    sampled: list[Result | None] = [None] * len(scenes)
-    solver = LangevinSolver(LangevinOptions(particles=o.particles, chain=o.chain))
-    for idx in _by_size(problems):
-        rs = solver.solve_many([problems[j] for j in idx], seed=seed, init=[starts[j] for j in idx])
-        for j, r in zip(idx, rs):
-            sampled[j] = r
+    states = _select(model, scenes, problems, o, seed)
     out = []
-    for s, p, r0 in zip(scenes, problems, sampled):
-        assert r0 is not None
+    for s, p, x in zip(scenes, problems, states):
+        r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
         out.append(_finish(model, s, p, r0, effort, seed, stay, weights, reach, o))
     return out
+
+
+def _select(
+    model: ScoreModel, scenes: list[Scene], problems: list[Problem], o: TidyOptions, seed: int
+) -> list[np.ndarray]:
+    """Which objects to move, per scene, by forward selection with a backward check: each step re-places
+    the chosen set with one more movable object (the others where they are) and keeps the set whose
+    best placement lowers the whole cost (energy, effort, overlap, bounds, reach) the most; then each
+    chosen object is tried back where it is, the rest re-placed, and dropped when that lowers the cost
+    (a first pick that only made room for the right one). Stops when neither step lowers the cost.
+    Returns each scene's poses ``(N, 3)``."""
+    states = [s.poses() for s in scenes]
+    chosen: list[list[str]] = [[] for _ in scenes]
+    best = [float(_cost(p, x[None])[0]) for p, x in zip(problems, states)]
+    limit = [len(p.movable) if o.max_moves is None else min(o.max_moves, len(p.movable)) for p in problems]
+    active = [k for k in range(len(scenes)) if limit[k] > 0]
+    step = 0
+    while active and step < 4 * max(limit):
+        step += 1
+        grow = {k: [[*chosen[k], n] for n in problems[k].movable if n not in chosen[k]] for k in active}
+        shrink = {
+            k: [[m for m in chosen[k] if m != n] for n in chosen[k]] for k in active if len(chosen[k]) > 1
+        }
+        jobs = {k: (grow[k] if len(chosen[k]) < limit[k] else []) + shrink.get(k, []) for k in active}
+        found = _replacements(model, scenes, problems, jobs, o, seed + 7919 * step, states)
+        still = []
+        for k in active:
+            if k in found and found[k][0] < best[k] - o.gain_tol:
+                best[k], states[k], chosen[k] = found[k]
+                still.append(k)
+        active = still
+    return states
+
+
+def _replacements(
+    model: ScoreModel,
+    scenes: list[Scene],
+    problems: list[Problem],
+    jobs: dict[int, list[list[str]]],
+    o: TidyOptions,
+    seed: int,
+    warm: list[np.ndarray] | None = None,
+) -> dict[int, tuple[float, np.ndarray, list[str]]]:
+    """Per scene ``k`` of ``jobs``: the lowest cost of ``problems[k]`` found by re-placing one of its
+    sets of objects (the others where they are; every set of every scene placed in one batched chain
+    per size), its poses ``(N, 3)`` and that set. ``warm``: each scene's poses so far; half the draws
+    keep the objects of the set that those poses moved where they put them."""
+    from .placement import placement_problem
+
+    flat = [(k, names) for k, sets in jobs.items() for names in sets if names]
+    blanks, starts = [], []
+    gen = torch.Generator().manual_seed(int(seed))
+    draws, keep = max(o.propose.candidates, o.propose.particles), o.propose.particles
+    for k, names in flat:
+        blank = scenes[k].copy()
+        for m in names:
+            blank.objects[blank.index(m)].pose = None
+        p = placement_problem(model, blank)
+        x = p.initial(draws, gen)  # (draws, N, 3): the set uniform, the others where they are
+        if warm is not None:
+            now = scenes[k].poses()
+            rows = [scenes[k].index(m) for m in names]
+            moved = [i for i in rows if not np.array_equal(warm[k][i], now[i])]
+            if moved:
+                x[: draws // 2, moved] = torch.as_tensor(warm[k][moved], dtype=x.dtype)
+        blanks.append(p)
+        starts.append(screen(p.cost, x, keep))
+    found: dict[int, tuple[float, np.ndarray, list[str]]] = {}
+    solver = LangevinSolver(o.propose)
+    for idx in _by_size(blanks):
+        results = solver.solve_many([blanks[j] for j in idx], seed=seed, init=[starts[j] for j in idx])
+        for j, res in zip(idx, results):
+            k, names = flat[j]
+            assert res.samples is not None
+            costs = _cost(problems[k], res.samples)
+            i = int(np.argmin(costs))
+            if k not in found or costs[i] < found[k][0]:
+                found[k] = (float(costs[i]), np.asarray(res.samples[i], dtype=float), list(names))
+    return found
+
+
+def move_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> np.ndarray:
+    """Per scene taken as right: how much re-placing its best single object lowers the learned energy
+    (with non-overlap and bounds); the noise of the model's own judgement that a move must beat."""
+    scenes = list(scenes)
+    o = TidyOptions(count=0.0)
+    problems = [tidy_problem(model, s, 0.0, options=o) for s in scenes]
+    now = [float(_cost(p, s.poses()[None])[0]) for p, s in zip(problems, scenes)]
+    jobs = {k: [[n] for n in p.movable] for k, p in enumerate(problems)}
+    found = _replacements(model, scenes, problems, jobs, o, seed)
+    return np.array([max(0.0, now[k] - found[k][0]) if k in found else 0.0 for k in range(len(scenes))])
+
+
+def calibrate(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> float:
+    """Set ``model``'s move gain from ``scenes`` taken as right (held-out ones are best): the
+    :data:`GAIN_QUANTILE` quantile of :func:`move_gains`, the energy a move must gain at effort 1. It is
+    stored in ``model.info["tidy"]`` (and so in the checkpoint); returns it."""
+    posed = [s for s in scenes if not s.unknown]
+    if not posed:
+        raise TidyError("calibrate: no scene with every pose known to measure the move gain on")
+    gains = move_gains(model, posed, seed)
+    gain = float(np.quantile(gains, GAIN_QUANTILE))
+    model.info["tidy"] = {"move_gain": gain, "scenes": len(posed), "quantile": GAIN_QUANTILE}
+    return gain
+
+
+def count_weight(model: ScoreModel, options: TidyOptions | None = None) -> float:
+    """Energy per moved object at effort 1: ``options.count``, else the model's calibrated move gain,
+    else :data:`COUNT`."""
+    o = options or TidyOptions()
+    if o.count is not None:
+        return float(o.count)
+    stored = model.info.get("tidy") if isinstance(model.info, dict) else None
+    gain = stored.get("move_gain") if isinstance(stored, dict) else None
+    if isinstance(gain, (int, float)) and not isinstance(gain, bool) and math.isfinite(gain) and gain >= 0:
+        return float(gain)
+    return COUNT
+
+
+def _by_size(problems: Sequence[Problem]) -> list[list[int]]:
+    """Indices of ``problems`` grouped by their number of objects (one batched chain each)."""
+    groups: dict[int, list[int]] = {}
+    for j, p in enumerate(problems):
+        groups.setdefault(p.n, []).append(j)
+    return list(groups.values())
+
+
+def _cost(problem: Problem, x: np.ndarray | torch.Tensor) -> np.ndarray:
+    """The whole cost of ``problem`` at each row of ``x`` ``(B, N, 3)``."""
+    with torch.no_grad():
+        return problem.evaluate(torch.as_tensor(np.asarray(x), dtype=torch.float64)).numpy()
 
 
 def _finish(
@@ -383,11 +467,15 @@ def _finish(
 ) -> TidyResult:
     """Prune the chain's best, refine the moved objects alone, plan the moves."""
     current = scene.poses()
-    x = _prune(problem, r.poses, current, o)
-    moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > o.move_tol]
+    x = _prune(problem, r.poses, current, o, model.config.length_scale)
+    moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > o.move_tol * model.config.length_scale]
     final = tidy_problem(model, scene, effort, stay, weights, reach, o, movable=moved or problem.movable)
-    if moved and o.refine:  # the moved objects alone, every other one exactly where it is
-        r2 = solve(final, o.refine, init=x, seed=seed, options={o.refine: o.refine_options})
+    if moved and o.refine:
+        # the moved objects alone, every other one exactly where it is; by the energy and the constraints
+        # without the effort: the selection chose which objects move and to which spot, and a pull back
+        # toward where they were would leave them short of it
+        put = tidy_problem(model, scene, 0.0, stay, weights, reach, o, movable=moved)
+        r2 = solve(put, o.refine, init=x, seed=seed, options={o.refine: o.refine_options})
         if (
             float(final.violation(torch.as_tensor(r2.poses))[0])
             <= float(final.violation(torch.as_tensor(x))[0]) + 1e-12
@@ -410,16 +498,20 @@ def _finish(
     except TidyError as e:
         steps, check = [], PlanCheck(False, [str(e)])
         warnings.append(str(e))
-    return TidyResult(scene, after, moved, dist, turn, disp, steps, check, r, float(effort), seed, warnings)
+    count = float(effort) * count_weight(model, o)
+    return TidyResult(
+        scene, after, moved, dist, turn, disp, steps, check, r, float(effort), seed, warnings, count
+    )
 
 
-def _prune(problem: Problem, x: np.ndarray, current: np.ndarray, o: TidyOptions) -> np.ndarray:
+def _prune(problem: Problem, x: np.ndarray, current: np.ndarray, o: TidyOptions, length: float) -> np.ndarray:
     """Objects moved less than ``move_tol`` back where they are; then each move undone while that
     lowers the whole cost (smallest moves first)."""
     x = np.array(x, dtype=float)
     before = problem.scene
+    tol = o.move_tol * length
     d = _moves(before, x)
-    x[d <= o.move_tol] = current[d <= o.move_tol]
+    x[d <= tol] = current[d <= tol]
 
     def cost(p: np.ndarray) -> float:
         with torch.no_grad():
@@ -431,7 +523,7 @@ def _prune(problem: Problem, x: np.ndarray, current: np.ndarray, o: TidyOptions)
         changed = False
         d = _moves(before, x)
         for i in np.argsort(d):
-            if d[i] <= o.move_tol:
+            if d[i] <= tol:
                 continue
             y = x.copy()
             y[i] = current[i]

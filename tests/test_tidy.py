@@ -6,15 +6,31 @@ import json
 import math
 from dataclasses import replace
 
+import numpy as np
 import pytest
 import torch
 
 from scenescore.encoders import FootprintEncoder
-from scenescore.models import ScoreModel
+from scenescore.errors import ConfigError
+from scenescore.models import ScoreModel, load
+from scenescore.problem import Problem
 from scenescore.sampling import PLACEMENT
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers.langevin import LangevinOptions
-from scenescore.tidy import Step, TidyError, TidyOptions, plan_moves, tidy, validate_plan
+from scenescore.tidy import (
+    COUNT,
+    Step,
+    TidyError,
+    TidyOptions,
+    calibrate,
+    count_weight,
+    move_gains,
+    plan_moves,
+    tidy,
+    tidy_problem,
+    validate_plan,
+)
+from scenescore.tidy import _select as T_select
 
 torch.set_num_threads(1)
 
@@ -81,12 +97,7 @@ def test_a_target_on_an_object_that_stays_is_an_error():
 def _quick() -> TidyOptions:
     chain = replace(PLACEMENT, steps=3, final_descent=2)
     return TidyOptions(
-        proposals=2,
-        candidates=16,
-        particles=4,
-        chain=chain,
-        propose=LangevinOptions(particles=2, candidates=4, chain=chain),
-        refine_options={"max_iter": 3},
+        propose=LangevinOptions(particles=2, candidates=4, chain=chain), refine_options={"max_iter": 3}
     )
 
 
@@ -129,3 +140,54 @@ def test_the_cli_writes_the_moves_the_plan_and_the_plot(tmp_path, capsys):
     assert "--reach: expected X,Y,R" in capsys.readouterr().err
     assert main(["tidy", *args, "--stay", "book,pen,mug"]) == 2
     assert "no object may move" in capsys.readouterr().err
+
+
+def test_options_are_checked_and_the_count_weight_falls_back_in_order():
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    with pytest.raises(ConfigError, match="TidyOptions: sigma: expected a finite number > 0"):
+        TidyOptions(sigma=0.0)
+    with pytest.raises(ConfigError, match="TidyOptions: count: expected a finite number >= 0"):
+        TidyOptions(count=-1.0)
+    assert count_weight(model) == COUNT  # no calibration stored
+    model.info["tidy"] = {"move_gain": 0.42}
+    assert count_weight(model) == 0.42
+    assert count_weight(model, TidyOptions(count=2.0)) == 2.0  # an explicit weight wins
+    model.info["tidy"] = {"move_gain": float("nan")}
+    assert count_weight(model) == COUNT
+
+
+def test_calibrate_stores_the_move_gain_in_the_checkpoint(tmp_path):
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    scenes = [_two(a=(-0.3, 0.1 * k), b=(0.3, -0.1)) for k in range(3)]
+    gains = move_gains(model, scenes, seed=0)
+    assert gains.shape == (3,) and (gains >= 0).all()
+    gain = calibrate(model, scenes, seed=0)
+    assert gain == pytest.approx(float(np.quantile(gains, 0.75)))
+    model.save(tmp_path / "m.ckpt")
+    assert count_weight(load(tmp_path / "m.ckpt")) == pytest.approx(gain)
+    with pytest.raises(TidyError, match="no scene with every pose known"):
+        calibrate(model, [scenes[0].without("red")])
+
+
+def test_the_selection_moves_only_the_object_that_is_out_of_place():
+    """A hand-made energy (a cost the model would learn): blue belongs 0.3 m right of red. Blue moved
+    away is put back; red, already right, stays exactly where it is; at a large effort nothing moves."""
+    from scenescore.costs import PoseTarget
+
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    with torch.no_grad():
+        for prm in model.net.parameters():
+            prm.zero_()  # a flat learned energy: the target below is the only preference
+    scene = _two(a=(-0.2, 0.0), b=(0.3, 0.3))
+    chain = replace(PLACEMENT, steps=2, final_descent=1)
+    o = TidyOptions(propose=LangevinOptions(particles=256, chain=chain))
+    target = 50.0 * PoseTarget("blue", (0.1, 0.0))
+    prob = tidy_problem(model, scene, 1.0, options=o)
+    x = T_select(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
+    assert np.array_equal(x[scene.index("red")], scene.poses()[scene.index("red")])
+    assert np.hypot(*(x[scene.index("blue"), :2] - [0.1, 0.0])) < 0.15
+    prob = tidy_problem(model, scene, 1000.0, options=o)
+    x = T_select(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
+    assert np.array_equal(x, scene.poses())  # every move costs more than it gains

@@ -218,6 +218,14 @@ def run_train(args: argparse.Namespace) -> int:
     elif args.plot is not None:
         training_figure(info["history"], info["chance_loss"], [], args.plot)
         print(f"wrote {args.plot}")
+    from ..tidy import calibrate
+
+    gain = calibrate(model, held or train_s[:16], seed=args.seed)
+    report["tidy"] = model.info["tidy"]
+    print(
+        f"tidy: a move must lower the energy by {gain:.3f} at effort 1 (the move gain of "
+        f"{len(held or train_s[:16])} {'held-out' if held else 'training'} scenes)"
+    )
     model.save(args.out)
     report_path = args.report or args.out.with_name("train_report.json")
     atomic_write_text(report_path, json.dumps(report, indent=1) + "\n")

@@ -80,7 +80,10 @@ def run(args: argparse.Namespace) -> int:
             f"{n:20s} ({a[0]:+.3f}, {a[1]:+.3f}, {a[2]:+.2f}) -> ({b[0]:+.3f}, {b[1]:+.3f}, {b[2]:+.2f})"
             f"  {r.distance[n]:.3f} m, turn {r.turn[n]:.2f} rad"
         )
-    print(f"moved {len(r.moved)} of {len(scene)} objects; total displacement {r.total_displacement:.3f} m")
+    print(
+        f"moved {len(r.moved)} of {len(scene)} objects; total displacement {r.total_displacement:.3f} m "
+        f"(a move costs {r.count:.3f} in energy at effort {r.effort:g})"
+    )
     for k, s in enumerate(r.steps, start=1):
         x, y, t = s.goal
         where = "buffer" if s.buffer else "target"

@@ -32,7 +32,7 @@ from ..problem import Problem
 from ..scenarios import get
 from ..scene import Scene, SceneError, wrap_angle
 from ..solvers.langevin import LangevinOptions
-from ..tidy import EFFORT, TidyError, TidyOptions, plan_moves, tidy_many, validate_plan
+from ..tidy import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
 from ..training import TrainConfig, train
 from .report import Row, format_table
 
@@ -292,10 +292,14 @@ def run(
         t0 = time.perf_counter()
         train_s, test_s = sc.split(seed)
         model = train(train_s, config or TrainConfig(), seed=seed, progress=progress)
+        held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
+        gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
         cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
         if not cases:
             raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
-        log(f"{name}: trained in {time.perf_counter() - t0:.0f} s; {len(cases)} messy cases")
+        log(
+            f"{name}: trained in {time.perf_counter() - t0:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases"
+        )
         res.cases += cases
         messy = [c.messy for c in cases]
         for e in efforts:

@@ -32,9 +32,7 @@ def test_messy_cases_are_feasible_and_rejected_by_the_check():
 def test_run_reports_every_method_and_draws_the_chart(tmp_path):
     chain = replace(PLACEMENT, steps=2, final_descent=1)
     tiny = LangevinOptions(particles=2, candidates=4, chain=chain)
-    opts = TidyOptions(
-        proposals=2, candidates=8, particles=2, chain=chain, propose=tiny, refine_options={"max_iter": 2}
-    )
+    opts = TidyOptions(propose=tiny, refine_options={"max_iter": 2})
     res = T.run(
         ("desk",),
         efforts=(1.0,),
