@@ -377,7 +377,7 @@ def _replacements(
         blank = scenes[k].copy()
         for m in names:
             blank.objects[blank.index(m)].pose = None
-        p = placement_problem(model, blank)
+        p = placement_problem(model, blank, energy_only=True)  # the fused network alone; overlap is judged below
         x = p.initial(draws, gen)  # (draws, N, 3): the set uniform, the others where they are
         if warm is not None:
             now = scenes[k].poses()
