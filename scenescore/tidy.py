@@ -377,7 +377,9 @@ def _replacements(
         blank = scenes[k].copy()
         for m in names:
             blank.objects[blank.index(m)].pose = None
-        p = placement_problem(model, blank, energy_only=True)  # the fused network alone; overlap is judged below
+        p = placement_problem(
+            model, blank, energy_only=True
+        )  # the fused network alone; overlap is judged below
         x = p.initial(draws, gen)  # (draws, N, 3): the set uniform, the others where they are
         if warm is not None:
             now = scenes[k].poses()
@@ -603,6 +605,11 @@ def plan_moves(
         s = state[n]
         if s is None or not _same(s, g, tol):
             todo.append(n)
+    final = _state(before, {n: goal[n] for n in before.names})
+    for n in todo:
+        wrong = _legal(final, n, reach)
+        if wrong:
+            raise TidyError(f"plan: {n!r}'s target is not allowed: {wrong[0]}")
     steps: list[Step] = []
     gen = np.random.default_rng(seed)
     parked: set[str] = set()

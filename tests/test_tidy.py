@@ -191,3 +191,10 @@ def test_the_selection_moves_only_the_object_that_is_out_of_place():
     prob = tidy_problem(model, scene, 1000.0, options=o)
     x = T_select(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
     assert np.array_equal(x, scene.poses())  # every move costs more than it gains
+
+
+def test_a_target_outside_the_bounds_gets_no_plan():
+    before = _two(a=(-0.3, 0.0), b=(0.3, 0.0))
+    after = before.with_poses([[0.58, 0.0, 0.0]], ["blue"])  # its footprint sticks out of the bounds
+    with pytest.raises(TidyError, match="'blue''s target is not allowed: .*out of bounds"):
+        plan_moves(before, after)

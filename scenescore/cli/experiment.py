@@ -314,7 +314,8 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         "or two objects of different kinds swapped); training "
         f"{cfg.iterations} iterations; seed {args.seed}. accepted: the scenario's check; precision and recall "
         "of the moved objects against the displaced ones; displacement and put-back in metres (centre and tip), "
-        "ratio their totals' quotient; plan steps include buffer moves; plans valid when replayed.\n\n"
+        "ratio their totals' quotient; plan steps include buffer moves; no plan: the targets admit none (one "
+        "outside the bounds, say); plans valid: of the plans made, the share valid when replayed.\n\n"
     )
     md += (
         tidy.format_tidy(res)

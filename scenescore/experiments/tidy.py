@@ -12,7 +12,9 @@ that are collision-free, inside the bounds and *rejected* by the scenario's chec
 Figures: the fraction of results the scenario's check accepts; precision and recall of the moved set
 against the displaced set; total displacement (centre and tip, metres) over the put-back
 displacement (the displaced objects moved back to where they were); objects moved; plan length
-(pick-and-places, buffer moves included) and the fraction of plans valid when replayed.
+(pick-and-places, buffer moves included); the fraction of results whose targets admit no plan (a
+target outside the bounds, or on an object that stays) and, of the plans made, the fraction valid
+when replayed.
 """
 
 from __future__ import annotations
@@ -197,6 +199,7 @@ class Outcome:
     plan_steps: int
     plan_valid: bool
     buffers: int
+    plan_made: bool = True  # False: the targets admit no plan (one outside the bounds, say)
 
 
 def _score(
@@ -207,12 +210,11 @@ def _score(
     disp = float(cast(Displacement, d).moves(after.poses()).sum())
     try:
         steps = plan_moves(case.messy, after, model=model, seed=seed)
-        valid = validate_plan(case.messy, after, steps, model=model).valid
+        valid, made = validate_plan(case.messy, after, steps, model=model).valid, True
     except TidyError:
-        steps, valid = [], False
-    return Outcome(
-        accepts(scenario, after, case.truth), moved, disp, len(steps), valid, sum(s.buffer for s in steps)
-    )
+        steps, valid, made = [], False, False
+    buffers = sum(s.buffer for s in steps)
+    return Outcome(accepts(scenario, after, case.truth), moved, disp, len(steps), valid, buffers, made)
 
 
 def _moved(before: Scene, after: Scene, tol: float = 0.01) -> list[str]:
@@ -238,6 +240,7 @@ class TidyRun:
             hit = len(set(o.moved) & set(c.displaced))
             prec.append(hit / len(o.moved) if o.moved else 1.0)
             rec.append(hit / len(c.displaced))
+        made = [o for _, o in pairs if o.plan_made]
         disp = np.array([o.displacement for _, o in pairs])
         back = np.array([c.putback for c, _ in pairs])
         return {
@@ -251,7 +254,8 @@ class TidyRun:
             "ratio": float(disp.sum() / max(back.sum(), 1e-12)),
             "plan_steps": float(np.mean([o.plan_steps for _, o in pairs])),
             "buffers": float(np.mean([o.buffers for _, o in pairs])),
-            "plans_valid": float(np.mean([o.plan_valid for _, o in pairs])),
+            "no_plan": 1.0 - len(made) / len(pairs),
+            **({"plans_valid": float(np.mean([o.plan_valid for o in made]))} if made else {}),
         }
 
     def rows(self, select: Callable[[MessyCase], bool] = lambda c: True) -> list[Row]:
@@ -314,6 +318,7 @@ def run(
                     len(r.steps),
                     r.check.valid,
                     r.buffers,
+                    r.check.valid or bool(r.steps),  # no steps and invalid: no plan could be made
                 )
                 res.outcomes[method_name(e)].append(out)
             log(f"{name}: {method_name(e)} {time.perf_counter() - t:.0f} s")
@@ -355,6 +360,7 @@ COLUMNS = [
     ("ratio", "ratio"),
     ("plan_steps", "plan steps"),
     ("buffers", "buffers"),
+    ("no_plan", "no plan"),
     ("plans_valid", "plans valid"),
     ("seconds", "s"),
 ]

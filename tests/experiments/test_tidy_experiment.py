@@ -49,6 +49,9 @@ def test_run_reports_every_method_and_draws_the_chart(tmp_path):
         f = r.figures
         assert 0 <= f["accepted"] <= 1 and 0 <= f["precision"] <= 1 and 0 <= f["recall"] <= 1
         assert f["cases"] == len(res.cases)
+    for m in res.outcomes:  # plans valid is over the plans made; none made leaves it out
+        f = res.figures(m)
+        assert 0 <= f["no_plan"] <= 1 and ("plans_valid" in f) == (f["no_plan"] < 1)
     missing = res.figures("missing placement")
     assert missing["precision"] == 1.0 and missing["recall"] == 1.0
     md = T.format_tidy(res)
