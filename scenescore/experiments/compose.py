@@ -27,15 +27,29 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..scenarios.tv import TVScenario
-from ..scene import SceneError
+from ..scene import Scene, SceneError
 from ..training import TrainConfig
 from .report import Row, format_table
 
-__all__ = ["ComposeResult", "run", "format_compose", "plot_compose", "METHODS"]
+if TYPE_CHECKING:
+    from ..models import ScoreModel
+    from ..problem import Problem
+
+__all__ = [
+    "ComposeResult",
+    "run",
+    "format_compose",
+    "plot_compose",
+    "METHODS",
+    "train_energy",
+    "tv_problem",
+    "langevin_options",
+]
 
 METHODS = ["NeatNet", "SceneScore", "SceneScore (langevin>osqp)", "SceneScore (langevin>casadi)"]
 CHAINS = {"SceneScore (langevin>osqp)": "osqp", "SceneScore (langevin>casadi)": "casadi"}
@@ -69,6 +83,34 @@ class ComposeResult:
         return rows
 
 
+def train_energy(scenes: list[Scene], seed: int, quick: bool = False, progress: bool = False) -> ScoreModel:
+    """The experiment's energy, trained on ``scenes``: every counter-example chain moves every object,
+    as the sampler does here."""
+    from ..training import train
+
+    tc = TrainConfig(iterations=100 if quick else 600, full_fraction=1.0, single_fraction=0.0)
+    return train(scenes, tc, seed=seed, progress=progress)
+
+
+def tv_problem(scene: Scene, model: ScoreModel) -> Problem:
+    """A cluttered test scene's problem: energy (television and speakers only) + 10 * hinge collision
+    + 10 * bounds, the television and speakers moving."""
+    from .. import costs
+    from ..problem import Problem
+
+    cost = (
+        costs.LearnedEnergy(model, objects=[o.name for o in scene.objects if not o.fixed])
+        + 10.0 * costs.HingeCollision(margin=0.0)
+        + 10.0 * costs.Bounds()
+    )
+    return Problem(scene, cost, movable=scene.unknown)
+
+
+def langevin_options(particles: int) -> dict[str, float]:
+    """The ``langevin`` stage's options: ``particles`` per scene, a population resampled three times."""
+    return {"particles": particles, "steps": 60, "resample": 3, "temperature": 1.0}
+
+
 def _correct(scenario: TVScenario, scene, poses: np.ndarray) -> tuple[int, int]:
     """Correct samples among ``poses (S, N, 3)``, and how many of them are distinct at 1 cm."""
     poses = np.asarray(poses)
@@ -92,11 +134,8 @@ def run(
     """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level."""
     import torch
 
-    from .. import costs
     from ..baselines import NeatNet, NeatNetConfig
-    from ..problem import Problem
     from ..solvers import get, solve
-    from ..training import train
 
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
@@ -116,9 +155,7 @@ def run(
         model = None
         if ss_methods:
             t0 = time.perf_counter()
-            # every object is sampled at once here, so every counter-example chain moves every object
-            tc = TrainConfig(iterations=100 if quick else 600, full_fraction=1.0, single_fraction=0.0)
-            model = train(train_s, tc, seed=seed, progress=progress)
+            model = train_energy(train_s, seed, quick, progress)
             dt = time.perf_counter() - t0
             for m in ss_methods:
                 res.seconds[m] = res.seconds.get(m, 0.0) + dt
@@ -142,15 +179,9 @@ def run(
                     res.seconds["NeatNet"] += time.perf_counter() - t0
                 if model is None:
                     continue
-                cost = (
-                    costs.LearnedEnergy(model, objects=[o.name for o in scene.objects if not o.fixed])
-                    + 10.0 * costs.HingeCollision(margin=0.0)
-                    + 10.0 * costs.Bounds()
-                )
-                prob = Problem(scene, cost, movable=scene.unknown)
+                prob = tv_problem(scene, model)
                 t0 = time.perf_counter()
-                lopts = {"particles": per_scene, "steps": 60, "resample": 3, "temperature": 1.0}
-                r = solve(prob, "langevin", seed=k, options={"langevin": lopts})
+                r = solve(prob, "langevin", seed=k, options={"langevin": langevin_options(per_scene)})
                 t_lan = time.perf_counter() - t0
                 for m in ss_methods:
                     res.seconds[m] += t_lan
