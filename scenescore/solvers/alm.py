@@ -42,15 +42,15 @@ __all__ = ["ALMOptions", "ALMSolver", "ParticleStatus"]
 
 MAX_ITERATIONS = 100_000  # more is a typo, not a plan
 ARMIJO = 1e-4  # sufficient decrease: a step must win this fraction of its first-order prediction
-GROW, SHRINK = 2.0, 0.25  # step size after an accepted / a rejected step
+SHRINK = 0.25  # the step fraction after a rejected step
 
 
 @dataclass(frozen=True)
 class ALMOptions:
     """Options of the ``alm`` batched refinement."""
 
-    iterations: int = 12  # outer iterations (multiplier updates)
-    inner: int = 4  # projected gradient steps per outer iteration
+    iterations: int = 25  # outer iterations (multiplier updates)
+    inner: int = 3  # projected gradient steps per outer iteration
     tolerance: float = FEASIBILITY_TOL  # largest violation (metres) that counts as feasible
     tol_grad: float = 1e-2  # stationarity: the Lagrangian's gradient (cost per metre) ...
     tol_step: float = 1e-5  # ... or no improving step longer than this (metres) is left
@@ -58,13 +58,15 @@ class ALMOptions:
     penalty: float = 1e4  # initial penalty per row (cost per metre^2)
     penalty_growth: float = 10.0  # factor on the penalty of a row whose violation did not fall enough
     penalty_max: float = 1e9
-    step: float = 0.01  # initial step per particle: the largest coordinate move (metres)
-    step_max: float = 0.1
+    memory: int = 5  # L-BFGS pairs per particle
+    step: float = 0.01  # a gradient step's largest coordinate move (metres; radians for an angle)
+    step_max: float = 0.1  # the largest move of any coordinate in one step
     threads: int | None = None  # torch threads; None: all of them for 256 particles or more, else one
 
     def __post_init__(self) -> None:
         check_number("alm", "iterations", self.iterations, 0, MAX_ITERATIONS, integer=True)
         check_number("alm", "inner", self.inner, 1, MAX_ITERATIONS, integer=True)
+        check_number("alm", "memory", self.memory, 1, 100, integer=True)
         for name in ("tolerance", "tol_grad", "tol_step", "penalty", "step", "step_max", "penalty_max"):
             check_number("alm", name, getattr(self, name), 0, open_lo=True)
         check_number("alm", "slack", self.slack, 0, self.tolerance)
@@ -130,6 +132,10 @@ class _Lagrangian:
         grad = torch.where(self.movable[None, :, None], grad, torch.zeros_like(grad))
         return value.detach(), grad, g.detach(), f.detach()
 
+    def step(self, x: Tensor, move: Tensor) -> Tensor:
+        """``x + move`` on the moving objects, angles wrapped; the others keep their poses bit for bit."""
+        return torch.where(self.movable[None, :, None], _wrap(x + move), x)
+
     def project(self, x: Tensor) -> Tensor:
         """The constraint terms' closed-form projections (bounds, reach) on the moving objects."""
         for c in self.rows_of:
@@ -145,11 +151,13 @@ class _State:
     x: Tensor  # (A, N, 3)
     lam: Tensor  # (A, R)
     rho: Tensor  # (A, R)
-    step: Tensor  # (A,) metres
+    t: Tensor  # (A,) the fraction of the quasi-Newton step to try next
     value: Tensor  # (A,) the AL at x
     grad: Tensor  # (A, N, 3)
     g: Tensor  # (A, R)
     before: Tensor  # (A, R) each row's violation at the last multiplier update (metres)
+    mem_s: Tensor  # (A, M, 3N) the last M accepted moves, oldest first (zeros: empty)
+    mem_y: Tensor  # (A, M, 3N) the gradient's change over each
 
     def keep(self, mask: Tensor) -> _State:
         return _State(*(t[mask] for t in self.__dict__.values()))
@@ -172,36 +180,64 @@ def _largest(v: Tensor) -> Tensor:
     return v.abs().flatten(1).amax(-1)
 
 
+def _direction(s: _State, first_step: float) -> Tensor:
+    """The L-BFGS direction ``(A, N, 3)`` of each particle from its own memory (two-loop recursion,
+    batched); a particle with an empty memory, or whose direction does not descend, takes the
+    gradient's direction scaled so that its largest move is ``first_step``."""
+    a, m, _ = s.mem_s.shape
+    q = s.grad.flatten(1)  # (A, D)
+    sy = (s.mem_s * s.mem_y).sum(-1)  # (A, M)
+    inv = torch.where(sy > 0, 1.0 / sy.clamp_min(1e-300), torch.zeros_like(sy))  # 0 on empty slots
+    alpha = q.new_zeros(a, m)
+    for i in reversed(range(m)):
+        alpha[:, i] = inv[:, i] * (s.mem_s[:, i] * q).sum(-1)
+        q = q - alpha[:, i, None] * s.mem_y[:, i]
+    yy = (s.mem_y[:, -1] * s.mem_y[:, -1]).sum(-1)
+    gamma = torch.where((sy[:, -1] > 0) & (yy > 0), sy[:, -1] / yy.clamp_min(1e-300), torch.zeros_like(yy))
+    r = gamma[:, None] * q
+    for i in range(m):
+        beta = inv[:, i] * (s.mem_y[:, i] * r).sum(-1)
+        r = r + s.mem_s[:, i] * (alpha[:, i] - beta)[:, None]
+    d = -r.reshape(s.grad.shape)
+    steepest = -s.grad * (first_step / _largest(s.grad).clamp_min(1e-300))[:, None, None]
+    use = (gamma > 0) & ((d * s.grad).flatten(1).sum(-1) < 0)
+    return torch.where(use[:, None, None], d, steepest)
+
+
 def _inner(lag: _Lagrangian, s: _State, steps: int) -> tuple[_State, Tensor]:
-    """``steps`` projected gradient steps on the AL with a per-particle step (the largest coordinate move:
-    metres, or radians for an angle) and a sufficient-decrease test. After an accepted step the next is
-    that particle's Barzilai-Borwein step (from its gradient's change along its move), after a rejected
-    one a quarter of the last. Returns the state and, per particle, whether its last step was rejected."""
-    rejected = torch.zeros_like(s.step, dtype=torch.bool)
+    """``steps`` projected quasi-Newton steps on the AL, batched: each particle its own L-BFGS direction,
+    step fraction (1 after an accepted step, a quarter of the last after a rejected one: a
+    sufficient-decrease test) and memory. A move never exceeds ``step_max`` in any coordinate (metres,
+    or radians for an angle). Returns the state and, per particle, whether it stalled: its last step,
+    shorter than ``tol_step``, was rejected."""
+    o = lag.o
+    stalled = torch.zeros_like(s.t, dtype=torch.bool)
     for _ in range(steps):
-        unit = s.grad / _largest(s.grad).clamp_min(1e-300)[:, None, None]  # (A, N, 3)
-        move = unit * s.step[:, None, None]
-        trial = lag.project(_wrap(s.x - move))
+        d = _direction(s, o.step)
+        size = _largest(d) * s.t  # (A,)
+        move = d * (s.t * (o.step_max / size.clamp_min(1e-300)).clamp(max=1.0))[:, None, None]
+        trial = lag.project(lag.step(s.x, move))
         value, grad, g, _ = lag(trial, s.lam, s.rho)
-        pred = (s.grad * move).flatten(1).sum(-1)  # (A,) first-order decrease
+        pred = -(s.grad * move).flatten(1).sum(-1)  # (A,) first-order decrease
         ok = torch.isfinite(value) & (value <= s.value - ARMIJO * pred)
         du, dg = _wrap(trial - s.x).flatten(1), (grad - s.grad).flatten(1)  # (A, 3N)
-        ss, sy = (du * du).sum(-1), (du * dg).sum(-1)
-        bb = torch.where(sy > 0, ss / sy.clamp_min(1e-300) * _largest(grad), s.step * GROW)
+        push = (ok & ((du * dg).sum(-1) > 1e-12 * (du * du).sum(-1)))[:, None, None]  # curvature holds
         k = ok[:, None, None]
         s = _State(
             s.idx,
             torch.where(k, trial, s.x),
             s.lam,
             s.rho,
-            torch.where(ok, bb.clamp(min=lag.o.tol_step, max=lag.o.step_max), s.step * SHRINK),
+            torch.where(ok, torch.ones_like(s.t), s.t * SHRINK),
             torch.where(ok, value, s.value),
             torch.where(k, grad, s.grad),
             torch.where(ok[:, None], g, s.g),
             s.before,
+            torch.where(push, torch.cat([s.mem_s[:, 1:], du[:, None]], 1), s.mem_s),
+            torch.where(push, torch.cat([s.mem_y[:, 1:], dg[:, None]], 1), s.mem_y),
         )
-        rejected = ~ok
-    return s, rejected
+        stalled = ~ok & (_largest(move) < o.tol_step)
+    return s, stalled
 
 
 def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor, list[str], int]:
@@ -221,18 +257,21 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
     status = np.full(b, ParticleStatus.INFEASIBLE, dtype=object)
     bad = ~torch.isfinite(value)
     status[bad.numpy()] = ParticleStatus.FAILED
-    step = torch.full((b,), o.step, dtype=x.dtype)
-    s = _State(torch.arange(b), x, lam, rho, step, value, grad, g, torch.relu(o.slack - g))
+    ones = torch.ones(b, dtype=x.dtype)
+    mem = x.new_zeros(b, o.memory, x[0].numel())
+    s = _State(torch.arange(b), x, lam, rho, ones, value, grad, g, torch.relu(o.slack - g), mem, mem.clone())
     s = s.keep(~bad)
     it = 0
     for it in range(1, o.iterations + 1):
         if not len(s.idx):
             break
-        s, rejected = _inner(lag, s, o.inner)
+        start = s.x
+        s, stalled = _inner(lag, s, o.inner)
+        moved = _largest(_wrap(s.x - start))  # (A,) the largest move of any coordinate this iteration
         v = _violation(s.g)
         # the gradient at the last accepted point is the Lagrangian's at the updated multipliers
         kkt = _largest(s.grad)
-        done = (v <= o.tolerance) & ((kkt <= o.tol_grad) | (rejected & (s.step < o.tol_step)))
+        done = (v <= o.tolerance) & ((kkt <= o.tol_grad) | stalled | (moved <= o.tol_step))
         out[s.idx] = s.x
         viol[s.idx] = v
         ok = s.idx[v <= o.tolerance]
@@ -248,7 +287,7 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
         stuck = (now > o.tolerance) & (now > 0.25 * s.before)
         rho = torch.where(stuck, (s.rho * o.penalty_growth).clamp(max=o.penalty_max), s.rho)
         value, grad, g, _ = lag(s.x, new_lam, rho)
-        s = _State(s.idx, s.x, new_lam, rho, s.step, value, grad, g, now)
+        s = _State(s.idx, s.x, new_lam, rho, s.t, value, grad, g, now, s.mem_s, s.mem_y)
     # still moving when the iterations ran out: the last feasible iterate (the start, if it was) stands
     # in for a particle that ends violated
     back = s.idx[(viol[s.idx] > o.tolerance) & (last_ok_viol[s.idx] <= o.tolerance)]
