@@ -10,16 +10,18 @@ particle is::
 with a multiplier ``lam`` and a penalty ``rho`` per particle and per row. The multipliers are
 warm-started from the problem's own penalty (the force a violated row feels from its weighted hinge),
 so particles from a sampler run on the penalised cost start with the multipliers that explain where
-they stand. Each outer iteration runs ``inner`` projected gradient steps on ``L`` with a step size per
-particle (the largest move of any coordinate: metres, or radians for an angle), set by the
-Barzilai-Borwein rule after an accepted step and cut after a rejected one (a sufficient-decrease
-test), then updates ``lam <- relu(lam + rho c)`` and multiplies ``rho`` by
-``penalty_growth`` on rows whose violation did not fall by a quarter.
+they stand. Each outer iteration runs ``inner`` projected quasi-Newton steps on ``L``, batched: every
+particle has its own L-BFGS memory and step fraction (a sufficient-decrease test accepts or quarters
+it; no coordinate moves more than ``step_max``: metres, or radians for an angle), then the multipliers
+become ``relu(lam + rho c)`` and ``rho`` grows by ``penalty_growth`` on rows whose violation did not
+fall by a quarter.
 
 Every particle has its own convergence test: its largest violation (metres) within ``tolerance`` and
-the Lagrangian's gradient within ``tol_grad``, or no step of ``tol_step`` left that improves ``L``.
+stationarity: the Lagrangian's gradient within ``tol_grad``, or the particle stopped moving (less than
+``tol_step`` in an outer iteration; contacts between boxes are kinks where no gradient vanishes).
 Converged particles leave the active set, so later iterations only pay for the particles still
-moving. Fixed objects, and objects that the problem does not move, never move.
+moving. A particle still violated when the iterations run out falls back to its last feasible iterate
+(its start, if that was feasible). Fixed objects, and objects the problem does not move, never move.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ class ALMOptions:
     inner: int = 3  # projected gradient steps per outer iteration
     tolerance: float = FEASIBILITY_TOL  # largest violation (metres) that counts as feasible
     tol_grad: float = 1e-2  # stationarity: the Lagrangian's gradient (cost per metre) ...
-    tol_step: float = 1e-5  # ... or no improving step longer than this (metres) is left
+    tol_step: float = 1e-5  # ... or it moved less than this in an outer iteration (metres)
     slack: float = 1e-5  # rows are aimed this far inside (metres)
     penalty: float = 1e4  # initial penalty per row (cost per metre^2)
     penalty_growth: float = 10.0  # factor on the penalty of a row whose violation did not fall enough
