@@ -288,8 +288,11 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
         # rows still violated and not a quarter better than at the last update: a stiffer penalty
         stuck = (now > o.tolerance) & (now > 0.25 * s.before)
         rho = torch.where(stuck, (s.rho * o.penalty_growth).clamp(max=o.penalty_max), s.rho)
-        value, grad, g, _ = lag(s.x, new_lam, rho)
-        s = _State(s.idx, s.x, new_lam, rho, s.t, value, grad, g, now, s.mem_s, s.mem_y)
+        value, grad = s.value.clone(), s.grad.clone()
+        changed = ((new_lam != s.lam) | (rho != s.rho)).any(-1)  # (A,) the others' AL is unchanged
+        if changed.any():
+            value[changed], grad[changed], _, _ = lag(s.x[changed], new_lam[changed], rho[changed])
+        s = _State(s.idx, s.x, new_lam, rho, s.t, value, grad, s.g, now, s.mem_s, s.mem_y)
     # still moving when the iterations ran out: the last feasible iterate (the start, if it was) stands
     # in for a particle that ends violated
     back = s.idx[(viol[s.idx] > o.tolerance) & (last_ok_viol[s.idx] <= o.tolerance)]
