@@ -19,7 +19,9 @@ fall by a quarter.
 Every particle has its own convergence test: its largest violation (metres) within ``tolerance`` and
 stationarity: the Lagrangian's gradient within ``tol_grad``, or the particle stopped moving (less than
 ``tol_step`` in an outer iteration; contacts between boxes are kinks where no gradient vanishes).
-Converged particles leave the active set, so later iterations only pay for the particles still
+With ``polish: false`` the refinement is a repair: a particle is done as soon as it is feasible (one
+feasible from the start does not move), which keeps a sampler's spread where polishing would merge
+the particles of one basin into one arrangement. Converged particles leave the active set, so later iterations only pay for the particles still
 moving. A particle still violated when the iterations run out falls back to its last feasible iterate
 (its start, if that was feasible). Fixed objects, and objects the problem does not move, never move.
 """
@@ -35,7 +37,7 @@ import torch
 from torch import Tensor
 
 from ..costs import ConstraintCost
-from ..errors import check_number
+from ..errors import ConfigError, check_number
 from ..problem import FEASIBILITY_TOL, Problem
 from .base import StageSolver, start_poses, torch_threads
 from .result import Result, Status, make_result
@@ -63,6 +65,7 @@ class ALMOptions:
     memory: int = 5  # L-BFGS pairs per particle
     step: float = 0.01  # a gradient step's largest coordinate move (metres; radians for an angle)
     step_max: float = 0.1  # the largest move of any coordinate in one step
+    polish: bool = True  # keep minimising the objective once feasible; False: a particle stops when feasible
     threads: int | None = None  # torch threads; None: all of them for 256 particles or more, else one
 
     def __post_init__(self) -> None:
@@ -75,6 +78,8 @@ class ALMOptions:
         check_number("alm", "penalty_growth", self.penalty_growth, 1)
         check_number("alm", "step_max", self.step_max, self.step)
         check_number("alm", "penalty_max", self.penalty_max, self.penalty)
+        if not isinstance(self.polish, bool):
+            raise ConfigError(f"alm: polish: expected true or false, got {self.polish!r}")
         if self.threads is not None:
             check_number("alm", "threads", self.threads, 1, 1024, integer=True)
 
@@ -257,12 +262,16 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
     viol = _violation(g)  # (B,)
     last_ok, last_ok_viol = x.clone(), viol.clone()  # each particle's last feasible iterate
     status = np.full(b, ParticleStatus.INFEASIBLE, dtype=object)
-    bad = ~torch.isfinite(value)
-    status[bad.numpy()] = ParticleStatus.FAILED
+    failed = ~torch.isfinite(value)
+    status[failed.numpy()] = ParticleStatus.FAILED
     ones = torch.ones(b, dtype=x.dtype)
     mem = x.new_zeros(b, o.memory, x[0].numel())
     s = _State(torch.arange(b), x, lam, rho, ones, value, grad, g, torch.relu(o.slack - g), mem, mem.clone())
-    s = s.keep(~bad)
+    done = failed
+    if not o.polish:  # a repair: particles feasible from the start are done
+        status[(~failed & (viol <= o.tolerance)).numpy()] = ParticleStatus.CONVERGED
+        done = failed | (viol <= o.tolerance)
+    s = s.keep(~done)
     it = 0
     for it in range(1, o.iterations + 1):
         if not len(s.idx):
@@ -273,7 +282,8 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
         v = _violation(s.g)
         # the gradient at the last accepted point is the Lagrangian's at the updated multipliers
         kkt = _largest(s.grad)
-        done = (v <= o.tolerance) & ((kkt <= o.tol_grad) | stalled | (moved <= o.tol_step))
+        stationary = (kkt <= o.tol_grad) | stalled | (moved <= o.tol_step)
+        done = (v <= o.tolerance) & (stationary if o.polish else torch.ones_like(stationary))
         out[s.idx] = s.x
         viol[s.idx] = v
         ok = s.idx[v <= o.tolerance]

@@ -94,6 +94,19 @@ def test_per_particle_statuses_and_best_first_order():
     assert np.array_equal(ok, feasible)
 
 
+def test_repair_leaves_feasible_samples_alone_and_repairs_the_rest():
+    p = _boxes()
+    good = p.full(p.base_poses().numpy().copy())
+    good[0, 1, :2] = torch.tensor([0.4, 0.4])
+    good[0, 2, :2] = torch.tensor([-0.4, -0.4])
+    x0 = torch.cat([good, _overlapping(p, 5)])
+    r = solve(p, "alm", init=x0, options={"alm": {"polish": False}})
+    assert all(p.check(x).feasible for x in r.samples) and set(r.sample_status) == {"converged"}
+    assert any(np.array_equal(x, good[0].numpy()) for x in r.samples)  # not moved at all
+    polished = solve(p, "alm", init=x0)
+    assert not any(np.array_equal(x, good[0].numpy()) for x in polished.samples)  # pulled to its targets
+
+
 def test_same_seed_same_numbers():
     p = _boxes()
     a = solve(p, "langevin>alm", seed=3, options={"langevin": FAST_LANGEVIN})
@@ -140,6 +153,7 @@ def test_registry_lists_alm_and_reads_options():
         ({"slack": 1.0}, r"alm: slack: expected a finite number >= 0 and <= 0.0001"),
         ({"penalty_growth": 0.5}, r"alm: penalty_growth: expected a finite number >= 1"),
         ({"threads": 0}, r"alm: threads: expected an integer >= 1"),
+        ({"polish": "yes"}, r"alm: polish: expected true or false, got 'yes'"),
         ({"iteratons": 3}, r"unknown option 'iteratons'; did you mean 'iterations'"),
     ],
 )
