@@ -20,7 +20,7 @@ def takes_batch(stage: Solver) -> bool:
 class Chain:
     """Stages run in turn; the best poses of one stage seed the next, or all its samples when the next
     stage ``takes_batch``. The result is the last stage's, with every stage in ``stages``, timings summed,
-    and the samples of the last stage that has them kept."""
+    and the samples of the last batch stage kept (without one, the first sampling stage's)."""
 
     def __init__(self, stages: list[Solver]):
         if not stages:
@@ -37,7 +37,9 @@ class Chain:
             batch = k + 1 < len(self.stages) and takes_batch(self.stages[k + 1])
             x = problem.full(r.samples if batch and r.samples is not None else r.poses)
         last = results[-1]
-        sampled = next((r for r in reversed(results) if r.samples is not None), None)
+        # the samples kept: the last batch stage's (it refined the population), else the first sampler's
+        batched = [r for st, r in zip(self.stages, results) if takes_batch(st) and r.samples is not None]
+        sampled = batched[-1] if batched else next((r for r in results if r.samples is not None), None)
         out = make_result(
             problem,
             self.name,

@@ -131,8 +131,12 @@ def test_chain_hands_every_particle_to_alm_and_keeps_them_all():
     refined = ALMSolver(iterations=0).solve(p, init=torch.as_tensor(lang.samples))
     assert np.allclose(np.sort(refined.samples, 0), np.sort(lang.samples, 0))
     assert np.array_equal(r.poses, r.samples[0]) and r.feasible
-    # a stage that takes one start still gets the best pose set, as before
-    assert solve(p, "langevin>osqp", seed=0, options={"langevin": FAST_LANGEVIN}).samples.shape == (16, 3, 3)
+    # a stage that takes one start still gets the best pose set, and the chain keeps the sampler's
+    # particles, as before
+    osqp = solve(p, "langevin>osqp", seed=0, options={"langevin": FAST_LANGEVIN})
+    assert np.array_equal(osqp.samples, lang.samples) and osqp.sample_status is None
+    twice = solve(p, "langevin>langevin", seed=0, options={"langevin": FAST_LANGEVIN})
+    assert np.array_equal(twice.samples, lang.samples)
 
 
 def test_registry_lists_alm_and_reads_options():
