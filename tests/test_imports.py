@@ -28,6 +28,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.problem", 6),
     ("scenescore.scenarios", 7),
     ("scenescore.solvers", 8),
+    ("scenescore.solvers.alm", 8),  # the batched augmented Lagrangian refinement
     ("scenescore.problem_file", 9),
     ("scenescore.training", 10),
     ("scenescore.placement", 10),

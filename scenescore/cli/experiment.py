@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="comma-separated subset of the methods (default all). missing: "
         "NeatNet, Nearest-Nbr, SceneScore-Abs, 'SceneScore (LeakyReLU)', SceneScore, Oracle; novel: "
-        "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>osqp)', "
+        "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>alm)', "
+        "'SceneScore (langevin>osqp)', "
         "'SceneScore (langevin>casadi)'",
     )
     p.add_argument(

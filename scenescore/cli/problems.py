@@ -16,7 +16,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("problem", help="problem.yaml")
     p.add_argument(
         "--solver",
-        help="langevin, osqp, casadi, or a chain of them joined by '>' (quote it: 'langevin>osqp'); "
+        help="langevin, osqp, casadi, alm, or a chain of them joined by '>' (quote it: 'langevin>osqp'); "
         "default: the file's",
     )
     p.add_argument("--out", help="write the result as JSON here")
@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument(
         "--solvers",
         default="langevin,langevin>osqp,langevin>casadi",
-        help="comma-separated solvers (langevin, osqp, casadi) or chains joined by '>'; quote it, '>' is a "
+        help="comma-separated solvers (langevin, osqp, casadi, alm) or chains joined by '>'; quote it, '>' is a "
         "shell redirect (default: 'langevin,langevin>osqp,langevin>casadi')",
     )
     c.add_argument("--seeds", type=int, default=5, help="number of seeds (default 5)")

@@ -2,11 +2,13 @@
 
 Every solver has ``solve(problem, init=None, seed=0) -> Result``. ``available()`` lists the names;
 ``"langevin>osqp"`` is a chain in which the best result of one stage seeds the next (cuRobo style:
-a sampling stage seeds a gradient stage). One module per solver:
+a sampling stage seeds a gradient stage); a batched stage (``"langevin>alm"``) is seeded with every
+particle. One module per solver:
 
 - ``langevin`` (:mod:`.langevin`): batched projected Langevin dynamics (all particles in ``result.samples``).
 - ``osqp`` (:mod:`.sqp`): SQP refinement with raw OSQP (linearised constraints, BFGS, trust region).
 - ``casadi`` (:mod:`.casadi`): IPOPT refinement through CasADi (each cost's symbolic form).
+- ``alm`` (:mod:`.alm`): augmented Lagrangian refinement of every particle at once (all kept, best first).
 """
 
 from __future__ import annotations

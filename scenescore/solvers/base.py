@@ -46,6 +46,9 @@ class StageSolver:
 
     name: ClassVar[str] = "stage"
     options_cls: ClassVar[type]
+    takes_batch: ClassVar[bool] = (
+        False  # in a chain: seeded with every sample of the stage before, not its best
+    )
 
     def __init__(self, **options: Any):
         self.options = self.options_cls(**options)

@@ -36,7 +36,18 @@ def _casadi(**o: Any) -> Solver:
     return CasadiSolver(**o)
 
 
-_REGISTRY: dict[str, Callable[..., Solver]] = {"langevin": _langevin, "osqp": _osqp, "casadi": _casadi}
+def _alm(**o: Any) -> Solver:
+    from .alm import ALMSolver
+
+    return ALMSolver(**o)
+
+
+_REGISTRY: dict[str, Callable[..., Solver]] = {
+    "langevin": _langevin,
+    "osqp": _osqp,
+    "casadi": _casadi,
+    "alm": _alm,
+}
 
 
 def register(name: str, factory: Callable[..., Solver]) -> None:
@@ -69,6 +80,10 @@ def option_names(name: str) -> list[str] | None:
         from .casadi import CasadiOptions
 
         return sorted(f.name for f in fields(CasadiOptions))
+    if name == "alm":
+        from .alm import ALMOptions
+
+        return sorted(f.name for f in fields(ALMOptions))
     return None
 
 

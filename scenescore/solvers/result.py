@@ -52,8 +52,12 @@ class Result:
     time_setup: float
     time_solve: float
     message: str = ""
-    samples: np.ndarray | None = None  # (B, N, 3): every particle, for sampling solvers
+    samples: np.ndarray | None = (
+        None  # (B, N, 3): every particle (sampling solvers; batched refinements: best first)
+    )
     sample_costs: np.ndarray | None = None  # (B,)
+    sample_status: np.ndarray | None = None  # (B,) str: each sample's Status value, for batched refinements
+    sample_violations: np.ndarray | None = None  # (B,) each sample's largest violation (metres)
     stages: list[Result] = field(default_factory=list)
     problem: Problem | None = field(default=None, repr=False)
     threads: int = 1  # torch threads the solve ran on
@@ -126,7 +130,15 @@ class Result:
             "poses": {n: [float(v) for v in p] for n, p in zip(names, self.poses)},
             "stages": [s.to_dict() for s in self.stages],
             "confidence": {n: a.to_dict() for n, a in self.confidence.items()},
+            **self._sample_counts(),
         }
+
+    def _sample_counts(self) -> dict[str, Any]:
+        """For a batched refinement: how many samples ended with each status (counts, not the samples)."""
+        if self.sample_status is None:
+            return {}
+        names, counts = np.unique(self.sample_status, return_counts=True)
+        return {"sample_status": {str(k): int(c) for k, c in zip(names, counts)}}
 
     def to_json(self, path: str | os.PathLike | None = None) -> str:
         """The result as JSON; written atomically to ``path`` when given."""
@@ -154,6 +166,8 @@ def make_result(
     message: str = "",
     samples: np.ndarray | torch.Tensor | None = None,
     sample_costs: np.ndarray | torch.Tensor | None = None,
+    sample_status: np.ndarray | None = None,
+    sample_violations: np.ndarray | torch.Tensor | None = None,
     tol: float = FEASIBILITY_TOL,
     threads: int = 1,
 ) -> Result:
@@ -206,6 +220,8 @@ def make_result(
         message=message,
         samples=None if samples is None else np.asarray(samples, dtype=float),
         sample_costs=None if sample_costs is None else np.asarray(sample_costs, dtype=float),
+        sample_status=None if sample_status is None else np.asarray(sample_status, dtype=str),
+        sample_violations=None if sample_violations is None else np.asarray(sample_violations, dtype=float),
         problem=problem,
         threads=threads,
         confidence=confidence,

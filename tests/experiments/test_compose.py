@@ -12,11 +12,16 @@ def test_compose_quick_rows_and_plot(tmp_path):
     res = compose.run(seeds=1, quick=True, progress=False, levels=[0, 1], samples=8, refine=1)
     rows = {r.method: r.figures for r in res.rows()}
     assert set(rows) == set(compose.METHODS)
-    for fig in rows.values():
+    for m, fig in rows.items():
+        budget = res.refine if m in compose.CHAINS else res.samples  # real counts, never scaled
+        assert fig["samples"] == budget
         for n in (0, 1):
-            assert 0 <= fig[f"correct_at_{n}_objects"] <= res.samples
+            assert 0 <= fig[f"distinct_at_{n}_objects"] <= fig[f"correct_at_{n}_objects"] <= budget
         assert fig["seconds"] > 0
     md = compose.format_compose(res)
-    assert "SceneScore (langevin>casadi)" in md and "1 clutter" in md
+    main, per_solve = md.split("Per-solve refinement")
+    assert "SceneScore (langevin>alm)" in main and "1 clutter" in main and "estimate" not in md
+    assert "SceneScore (langevin>casadi)" in per_solve and "langevin>casadi" not in main
+    assert "1 samples per clutter level" in per_solve
     compose.plot_compose(res, tmp_path / "fig4.png")
     assert (tmp_path / "fig4.png").read_bytes()[:4] == b"\x89PNG"

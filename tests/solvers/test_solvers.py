@@ -118,7 +118,8 @@ def test_same_seed_same_numbers_and_different_seed_different_numbers():
 def test_registry_and_errors():
     assert {"langevin", "osqp", "casadi"} <= set(available())
     with pytest.raises(
-        ProblemError, match="unknown solver 'osq'.*did you mean 'osqp'.*available: casadi, langevin, osqp"
+        ProblemError,
+        match="unknown solver 'osq'.*did you mean 'osqp'.*available: alm, casadi, langevin, osqp",
     ):
         get("osq")
     with pytest.raises(ProblemError, match="unknown solver 'nope'"):
