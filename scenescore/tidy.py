@@ -38,6 +38,7 @@ from .problem import FEASIBILITY_TOL, Problem, ProblemError
 from .sampling import PLACEMENT, screen
 from .scene import Scene, atomic_write_text, wrap_angle
 from .solvers import Result, Status, make_result, solve
+from .solvers.base import torch_threads
 from .solvers.langevin import LangevinOptions, LangevinSolver
 
 __all__ = [
@@ -314,11 +315,13 @@ def tidy_many(
                 "where they are (fill unknown poses first with `scenescore place`)"
             )
     problems = [tidy_problem(model, s, effort, stay, weights, reach, o) for s in scenes]
-    states = _select(model, scenes, problems, o, seed)
-    out = []
-    for s, p, x in zip(scenes, problems, states):
-        r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
-        out.append(_finish(model, s, p, r0, effort, seed, stay, weights, reach, o))
+    # small tensors: one torch thread (restored after; the placement chains choose their own)
+    with torch_threads(1):
+        states = _select(model, scenes, problems, o, seed)
+        out = []
+        for s, p, x in zip(scenes, problems, states):
+            r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
+            out.append(_finish(model, s, p, r0, effort, seed, stay, weights, reach, o))
     return out
 
 
