@@ -4,11 +4,14 @@ Every known pose is the current state. :func:`tidy` minimises the learned energy
 moving objects from where they are (:class:`~scenescore.costs.Displacement` and
 :class:`~scenescore.costs.MoveCount`), with non-overlap, bounds and, when given, reach:
 
-1. *Selection*: a forward selection of the objects to move. Each round re-places the objects chosen so
-   far together with one more movable object (the missing-object placement, with the others where
-   they are; every candidate of every scene in one batched chain per size) and keeps the set whose
-   best placement lowers the whole cost most; it stops when no further object lowers it. Re-placing
-   the chosen set together lets two objects trade places.
+1. *Selection*: a forward selection of the objects to move, with a backward check. Each step re-places
+   the objects chosen so far together with one more movable object (placed by the learned energy with
+   the others where they are; half the draws keep the chosen objects where the last step put them;
+   every candidate set of every scene in one batched chain per size) and keeps the set whose best
+   placement lowers the whole cost most; then each chosen object is tried back where it is, the rest
+   re-placed. It stops when neither lowers the cost. Re-placing the chosen set together lets two
+   objects trade places. A move's cost at effort 1 is the model's calibrated move gain
+   (:func:`calibrate`): what re-placing one object of a right scene gains.
 2. *Pruning*: objects that moved less than ``move_tol`` go back to where they are; each remaining move
    is undone when that lowers the cost; a last refinement (``osqp``) runs over the moved objects
    alone, so every other object is exactly where it was.
@@ -91,6 +94,8 @@ class TidyOptions:
     propose: LangevinOptions = LangevinOptions(
         particles=16, candidates=256, chain=replace(PLACEMENT, steps=40, final_descent=10)
     )
+    refine: str | None = "osqp"  # the refinement of the moved objects after pruning (None: none)
+    refine_options: dict[str, Any] = field(default_factory=lambda: {"max_iter": 40})
 
     def __post_init__(self) -> None:
         own = "TidyOptions"
@@ -102,9 +107,6 @@ class TidyOptions:
         if self.max_moves is not None:
             check_number(own, "max_moves", self.max_moves, 0, 1_000_000, integer=True)
         check_number(own, "gain_tol", self.gain_tol, 0.0, math.inf)
-
-    refine: str | None = "osqp"  # the refinement of the moved objects after pruning (None: none)
-    refine_options: dict[str, Any] = field(default_factory=lambda: {"max_iter": 40})
 
 
 @dataclass
@@ -173,6 +175,11 @@ class TidyResult:
     def total_distance(self) -> float:
         """Sum of the distances the moved objects' centres travel (metres)."""
         return float(sum(self.distance.values()))
+
+    @property
+    def plan_made(self) -> bool:
+        """Whether a plan could be made (False: a target admits none; the reason is in ``check``)."""
+        return self.check.valid or bool(self.steps)
 
     @property
     def buffers(self) -> int:
@@ -380,9 +387,8 @@ def _replacements(
         blank = scenes[k].copy()
         for m in names:
             blank.objects[blank.index(m)].pose = None
-        p = placement_problem(
-            model, blank, energy_only=True
-        )  # the fused network alone; overlap is judged below
+        # the fused network alone; the whole cost judges overlap below
+        p = placement_problem(model, blank, energy_only=True)
         x = p.initial(draws, gen)  # (draws, N, 3): the set uniform, the others where they are
         if warm is not None:
             now = scenes[k].poses()
@@ -470,10 +476,11 @@ def _finish(
     reach: Reach | None,
     o: TidyOptions,
 ) -> TidyResult:
-    """Prune the chain's best, refine the moved objects alone, plan the moves."""
+    """Prune the selection's poses, refine the moved objects alone, plan the moves."""
     current = scene.poses()
-    x = _prune(problem, r.poses, current, o, model.config.length_scale)
-    moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > o.move_tol * model.config.length_scale]
+    tol = o.move_tol * model.config.length_scale  # metres
+    x = _prune(problem, r.poses, current, tol)
+    moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > tol]
     final = tidy_problem(model, scene, effort, stay, weights, reach, o, movable=moved or problem.movable)
     if moved and o.refine:
         # the moved objects alone, every other one exactly where it is; by the energy and the constraints
@@ -509,18 +516,16 @@ def _finish(
     )
 
 
-def _prune(problem: Problem, x: np.ndarray, current: np.ndarray, o: TidyOptions, length: float) -> np.ndarray:
-    """Objects moved less than ``move_tol`` back where they are; then each move undone while that
+def _prune(problem: Problem, x: np.ndarray, current: np.ndarray, tol: float) -> np.ndarray:
+    """Objects moved less than ``tol`` (metres) back where they are; then each move undone while that
     lowers the whole cost (smallest moves first)."""
     x = np.array(x, dtype=float)
     before = problem.scene
-    tol = o.move_tol * length
     d = _moves(before, x)
     x[d <= tol] = current[d <= tol]
 
     def cost(p: np.ndarray) -> float:
-        with torch.no_grad():
-            return float(problem.evaluate(torch.as_tensor(p)[None])[0])
+        return float(_cost(problem, p[None])[0])
 
     best = cost(x)
     changed = True

@@ -220,11 +220,12 @@ def run_train(args: argparse.Namespace) -> int:
         print(f"wrote {args.plot}")
     from ..tidy import calibrate
 
-    gain = calibrate(model, held or train_s[:16], seed=args.seed)
+    right = held or train_s[:16]  # scenes taken as right: the held-out ones, else some training ones
+    gain = calibrate(model, right, seed=args.seed)
     report["tidy"] = model.info["tidy"]
     print(
         f"tidy: a move must lower the energy by {gain:.3f} at effort 1 (the move gain of "
-        f"{len(held or train_s[:16])} {'held-out' if held else 'training'} scenes)"
+        f"{len(right)} {'held-out' if held else 'training'} scenes)"
     )
     model.save(args.out)
     report_path = args.report or args.out.with_name("train_report.json")

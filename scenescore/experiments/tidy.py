@@ -318,7 +318,7 @@ def run(
                     len(r.steps),
                     r.check.valid,
                     r.buffers,
-                    r.check.valid or bool(r.steps),  # no steps and invalid: no plan could be made
+                    r.plan_made,
                 )
                 res.outcomes[method_name(e)].append(out)
             log(f"{name}: {method_name(e)} {time.perf_counter() - t:.0f} s")

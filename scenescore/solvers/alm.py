@@ -39,7 +39,7 @@ from torch import Tensor
 from ..costs import ConstraintCost
 from ..errors import ConfigError, check_number
 from ..problem import FEASIBILITY_TOL, Problem
-from .base import StageSolver, start_poses, torch_threads
+from .base import StageSolver, start_poses, threads_for
 from .result import Result, Status, make_result
 
 __all__ = ["ALMOptions", "ALMSolver", "ParticleStatus"]
@@ -322,17 +322,9 @@ class ALMSolver(StageSolver):
     options_cls = ALMOptions
     takes_batch = True
 
-    def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
-        """``solve(problem, init=None, seed=0) -> Result``; on every torch thread for 256 particles or
-        more (their tensors pay for the pool), one for fewer, unless ``threads`` says."""
-        rows = 1 if init is None else problem.full(init).shape[0]
-        n = self.options.threads
-        if n is None:
-            n = torch.get_num_threads() if rows >= 256 else 1
-        with torch_threads(n) as used:
-            r = self._solve(problem, init, seed)
-        r.threads = used
-        return r
+    def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
+        """Every torch thread for 256 particles or more (their tensors pay for the pool), one for fewer."""
+        return threads_for(1 if init is None else problem.full(init).shape[0])
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         o = self.options

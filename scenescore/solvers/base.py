@@ -12,7 +12,7 @@ from torch import Tensor
 from ..problem import Problem
 from .result import Result
 
-__all__ = ["Solver", "StageSolver", "start_poses", "torch_threads"]
+__all__ = ["Solver", "StageSolver", "start_poses", "threads_for", "torch_threads"]
 
 
 class Solver(Protocol):
@@ -22,6 +22,15 @@ class Solver(Protocol):
     def name(self) -> str: ...
 
     def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result: ...
+
+
+#: pose sets from which a batch's tensors are big enough to pay for torch's thread pool
+POOL_ROWS = 256
+
+
+def threads_for(rows: int) -> int:
+    """Torch threads for a batch of ``rows`` pose sets: all of them from :data:`POOL_ROWS` rows, else one."""
+    return torch.get_num_threads() if rows >= POOL_ROWS else 1
 
 
 @contextmanager
@@ -46,23 +55,22 @@ class StageSolver:
 
     name: ClassVar[str] = "stage"
     options_cls: ClassVar[type]
-    takes_batch: ClassVar[bool] = (
-        False  # in a chain: seeded with every sample of the stage before, not its best
-    )
+    # in a chain: seeded with every sample of the stage before, not its best
+    takes_batch: ClassVar[bool] = False
 
     def __init__(self, **options: Any):
         self.options = self.options_cls(**options)
 
     def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
         """``solve(problem, init=None, seed=0) -> Result``."""
-        n = self.options.threads if self.options.threads is not None else self.default_threads(problem)
+        n = self.options.threads if self.options.threads is not None else self.default_threads(problem, init)
         with torch_threads(n) as used:
             r = self._solve(problem, init, seed)
         r.threads = used
         return r
 
-    def default_threads(self, problem: Problem) -> int:
-        """Threads when the options leave it open: one (tiny tensors); batched samplers override."""
+    def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
+        """Threads when the options leave it open: one (tiny tensors); batched stages override."""
         return 1
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:  # pragma: no cover

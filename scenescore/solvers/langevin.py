@@ -28,7 +28,7 @@ from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
 from ..problem import FEASIBILITY_TOL, Problem, ProblemError
 from ..sampling import SAMPLING, LangevinConfig, langevin, screen
-from .base import StageSolver, torch_threads
+from .base import StageSolver, threads_for, torch_threads
 from .projection import LinearisedProjection
 from .result import Result, Status, make_result
 
@@ -94,10 +94,10 @@ class LangevinSolver(StageSolver):
             raise TypeError("langevin: give LangevinOptions or keyword options, not both")
         self.options = options if options is not None else LangevinOptions.from_flat(**flat)
 
-    def default_threads(self, problem: Problem) -> int:
+    def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
         """Every thread torch has for large populations (their tensors are big enough to pay for the
         pool), one for small ones."""
-        return torch.get_num_threads() if self.options.particles >= 256 else 1
+        return threads_for(self.options.particles)
 
     def solve_many(
         self, problems: Sequence[Problem], seed: int = 0, init: Sequence[Tensor] | None = None

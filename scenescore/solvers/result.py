@@ -52,9 +52,8 @@ class Result:
     time_setup: float
     time_solve: float
     message: str = ""
-    samples: np.ndarray | None = (
-        None  # (B, N, 3): every particle (sampling solvers; batched refinements: best first)
-    )
+    # (B, N, 3): every particle (sampling solvers; batched refinements: best first)
+    samples: np.ndarray | None = None
     sample_costs: np.ndarray | None = None  # (B,)
     sample_status: np.ndarray | None = None  # (B,) str: each sample's Status value, for batched refinements
     sample_violations: np.ndarray | None = None  # (B,) each sample's largest violation (metres)
