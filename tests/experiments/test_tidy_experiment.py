@@ -17,7 +17,7 @@ torch.set_num_threads(1)
 
 
 def test_messy_cases_are_feasible_and_rejected_by_the_check():
-    for name in ("dining", "desk", "tv", "zoo-hall"):
+    for name in ("dining", "desk", "tv", "zoo-hall", "zoo-jars"):  # jars: a broken grid has no oracle
         sc = get(name)
         truth = sc.generate(1, 3)
         assert T.accepts(sc, truth[0], truth[0]), name
