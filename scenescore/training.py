@@ -87,6 +87,9 @@ class TrainConfig:
     # round disks' headings ignored by the energy (their headings in the data are arbitrary, and a network
     # that sees them learns noise: on zoo-jars, all round, placements were 15 cm off with them seen)
     round_invariant: bool = True
+    # width of the network's edge encoder (see EnergyConfig.edge_encoder); None: raw edge features.
+    # On zoo-bedroom and zoo-pcb (seed 0) it cut the mean placement error by a third
+    edge_encoder: int | None = 32
 
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):
@@ -96,6 +99,8 @@ class TrainConfig:
         for name in ("batch_scenes", "negatives", "chain_steps"):
             check_number(own, name, getattr(self, name), 1, 100_000, integer=True)
         check_number(own, "perturbed", self.perturbed, 0, 100_000, integer=True)
+        if self.edge_encoder is not None:
+            check_number(own, "edge_encoder", self.edge_encoder, 1, 8192, integer=True)
         for name in ("restart", "full_fraction", "single_fraction"):
             check_number(own, name, getattr(self, name), 0, 1)
         if self.full_fraction + self.single_fraction > 1:
@@ -351,6 +356,7 @@ def _train(
         encoder,
         **{
             "round_invariant": cfg.round_invariant,
+            "edge_encoder": cfg.edge_encoder,
             **cfg.model,
             "length_scale": length,
             "edge_range": reach,

@@ -61,6 +61,8 @@ def energy_mx(model, scene, poses):
                 ux, uy = ux * f, uy * f
             cols.append(ca.vertcat(ux, uy, hc, hs))
         e = ca.horzcat(*cols)  # (4, P)
+        if cfg.edge_encoder:
+            e = _act(cfg.activation, ca.mtimes(sd["edge_enc.0.weight"], e) + sd["edge_enc.0.bias"])
     for k in range(cfg.layers):
         pre = f"layers.{k}."
         a = ca.mtimes(sd[pre + "w_i.weight"], v) + sd[pre + "w_i.bias"]

@@ -40,7 +40,7 @@ from torch import Tensor, nn
 
 from ..scene import Scene, SceneError, atomic_write_bytes
 from .model import ScoreModel
-from .network import EnergyNet, edge_features
+from .network import EnergyNet
 
 __all__ = [
     "ENERGY_INPUTS",
@@ -95,7 +95,7 @@ class _Energy(nn.Module):
             v = torch.cat([v, poses[..., :2] / cfg.length_scale, heading], dim=-1)
             e = None
         else:
-            e = edge_features(poses, cfg.length_scale, cfg.edge_range, rnd)
+            e = self.net.edges(poses, rnd)
         for layer in self.net.layers:
             v = layer(v, e, pair)
         return self.net.head(v.sum(dim=1)).squeeze(-1)

@@ -52,6 +52,10 @@ class EnergyConfig:
     # round disks' headings ignored: an edge from a round object carries only the distance, and an edge
     # touching one no relative heading (False: checkpoints before it; training turns it on)
     round_invariant: bool = False
+    # width of the edge encoder ``act(W e + b)`` that each message layer reads instead of the four raw
+    # edge features, so a message is a two-layer function of the relative pose and can form a well at
+    # one offset, not only a ramp; None: the raw features (checkpoints before it)
+    edge_encoder: int | None = None
 
     def __post_init__(self) -> None:
         own = "EnergyConfig"
@@ -63,6 +67,8 @@ class EnergyConfig:
         check_number(own, "length_scale", self.length_scale, 0, open_lo=True)
         if self.edge_range is not None:
             check_number(own, "edge_range", self.edge_range, 0, open_lo=True)
+        if self.edge_encoder is not None:
+            check_number(own, "edge_encoder", self.edge_encoder, 1, MAX_WIDTH, integer=True)
         if self.message not in ("mlp", "linear"):
             raise ConfigError(f"{own}: message: expected 'mlp' or 'linear', got {self.message!r}")
         if self.activation not in ("silu", "softplus", "leaky_relu"):
@@ -87,6 +93,9 @@ def parameter_count(cfg: EnergyConfig) -> int:
     h, inner = cfg.hidden, (cfg.edge_hidden or cfg.hidden) if cfg.message == "mlp" else cfg.hidden
     total = cfg.feat_dim * h + h + h * cfg.embed_dim + cfg.embed_dim  # embed
     d_edge = 0 if cfg.absolute else 4
+    if cfg.edge_encoder and not cfg.absolute:
+        total += 4 * cfg.edge_encoder + cfg.edge_encoder
+        d_edge = cfg.edge_encoder
     for k in range(cfg.layers):
         d_in = cfg.embed_dim + 2 + (4 if cfg.absolute else 0) if k == 0 else h
         total += 2 * d_in * inner + inner + d_edge * inner  # w_i (with bias), w_j, w_e
@@ -185,6 +194,13 @@ class EnergyNet(nn.Module):
         )
         d_node = cfg.embed_dim + 2 + (4 if cfg.absolute else 0)
         d_edge = 0 if cfg.absolute else 4
+        if cfg.edge_encoder and not cfg.absolute:
+            self.edge_enc: nn.Module | None = nn.Sequential(
+                nn.Linear(4, cfg.edge_encoder), make_activation(cfg.activation)
+            )
+            d_edge = cfg.edge_encoder
+        else:
+            self.edge_enc = None
         dims = [d_node] + [cfg.hidden] * cfg.layers
         self.layers = nn.ModuleList(
             _MessageLayer(dims[k], d_edge, cfg.hidden, cfg.message, act, cfg.edge_hidden or cfg.hidden)
@@ -207,6 +223,7 @@ class EnergyNet(nn.Module):
         cfg = self.cfg
         inner = (cfg.edge_hidden or cfg.hidden) if cfg.message == "mlp" else cfg.hidden
         per_edge = _EDGE_FLOATS + (cfg.layers * (_LAYER_FLOATS + inner) + 3 * inner if grad else 4 * inner)
+        per_edge += 2 * (cfg.edge_encoder or 0)
         per_node = cfg.feat_dim + 2 * cfg.embed_dim + 8 * cfg.hidden * cfg.layers
         return itemsize * (n * n * per_edge + n * per_node)
 
@@ -288,10 +305,16 @@ class EnergyNet(nn.Module):
             v = torch.cat([v, absf], dim=-1)
             e = None
         else:
-            e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range, rnd)
+            e = self.edges(poses, rnd)
         for layer in self.layers:
             v = layer(v, e, pair)
         return (v * maskf[..., None]).sum(dim=1)  # global add pooling
+
+    def edges(self, poses: Tensor, round: Tensor | None) -> Tensor:
+        """What the message layers read of each edge: :func:`edge_features`, through the edge encoder
+        when the network has one; ``(B, N, N, 4 or edge_encoder)``."""
+        e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range, round)
+        return e if self.edge_enc is None else self.edge_enc(e)
 
 
 class _ChunkedPooled(torch.autograd.Function):

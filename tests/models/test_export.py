@@ -101,6 +101,7 @@ def test_onnx_matches_torch_for_any_batch_and_object_count(trained, tmp_path):
         {"round_invariant": False},
         {"absolute": True, "round_invariant": True, "message": "linear", "activation": "leaky_relu"},
         {"round_invariant": True, "edge_range": 3.0, "activation": "softplus"},
+        {"round_invariant": True, "edge_encoder": 8},
     ],
 )
 def test_other_architectures(config, tmp_path):

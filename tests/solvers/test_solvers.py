@@ -99,6 +99,7 @@ def test_casadi_mx_rebuild_matches_torch_energy():
     configs = [{"activation": a} for a in ("silu", "softplus", "leaky_relu")]
     configs.append({"edge_range": 3.0, "walls": True, "length_scale": 0.07})  # saturating edges, walls
     configs += [{"round_invariant": True}, {"round_invariant": True, "absolute": True, "walls": True}]
+    configs.append({"edge_encoder": 8, "round_invariant": True, "edge_range": 3.0})  # the edge encoder
     for extra in configs:
         model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=16, layers=2, **extra).double()
         scene = ss.scenarios.get("dining").generate(1, 0)[0]
