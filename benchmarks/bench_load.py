@@ -9,9 +9,10 @@ object in each of 4 scenes at once (``place_many``: 256 particles in one batch).
 
 Thread settings: ``auto`` is the default (no ``--threads``: one thread for tiny tensors, the free cores
 for large batches); a number ``N`` is ``--threads N`` (large batches on N threads whatever the load).
-The machine's core count shows training as it ran before threads were chosen for it; numbers run the
-training only (placements at 64 particles run on one thread either way, and batched ones on every
-thread take minutes under load), unless ``--all-tasks``.
+The machine's core count shows training as it ran before threads were chosen for it; numbers run a
+quarter of the training iterations and no placement (placements at 64 particles run on one thread
+either way; on every thread, batched ones and the full training take minutes on a busy machine),
+unless ``--all-tasks``.
 """
 
 from __future__ import annotations
@@ -88,18 +89,22 @@ def main() -> None:
     )
     model = train(scenes[:8], TrainConfig(iterations=args.iterations), seed=0, progress=False)  # warm-up
     holes = [s.without(s.objects[1].name) for s in scenes[:4]]
+    short = TrainConfig(iterations=max(1, args.iterations // 4))
+
+    def training(c: TrainConfig) -> tuple[str, Callable[[], object]]:
+        return f"train ({len(scenes)} scenes, {c.iterations} it)", lambda: train(
+            scenes, c, seed=0, progress=False
+        )
+
     tasks: list[tuple[str, Callable[[], object]]] = [
-        (
-            f"train ({len(scenes)} scenes, {cfg.iterations} it)",
-            lambda: train(scenes, cfg, seed=0, progress=False),
-        ),
+        training(cfg),
         ("place (1 scene, 64 particles)", lambda: place(model, holes[0], seed=0)),
         ("place_many (4 scenes, 256 particles)", lambda: place_many(model, holes, seed=0)),
     ]
     print("\n| task | threads | alone (s) | loaded (s) | slowdown | free cores seen: alone, loaded |")
     print("|---|---:|---:|---:|---:|---:|", flush=True)
     for n in settings:
-        for name, fn in tasks if n is None or args.all_tasks else tasks[:1]:
+        for name, fn in tasks if n is None or args.all_tasks else [training(short)]:
             with ss.thread_budget(n):
                 alone = timed(fn)
                 seen = [free_cores()]
