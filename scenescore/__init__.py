@@ -7,6 +7,7 @@ from .encoders import Encoder, FootprintEncoder, make_encoder
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError, SceneObject, read_jsonl, write_jsonl
 from .solvers import solve
+from .threads import thread_budget  # with ss.thread_budget(1): ... is --threads 1
 from .tidy import tidy  # ss.tidy(model, scene, effort=1.0, seed=0); the module: scenescore.tidy
 
 __version__ = "0.1.0"
@@ -26,6 +27,7 @@ __all__ = [
     "Problem",
     "ProblemError",
     "solve",
+    "thread_budget",
     "tidy",
     "scenarios",
 ]

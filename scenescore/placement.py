@@ -2,7 +2,9 @@
 
 Placement has no sampler of its own: :func:`place` builds the :class:`~scenescore.problem.Problem` of the
 learned energy with the unknown objects movable and solves it with the ``langevin`` solver under the
-placement defaults (:data:`PLACE`).
+placement defaults (:data:`PLACE`), on the threads :func:`~scenescore.threads.threads_for` chooses for its
+particles: one for the default 64, the run's budget (``--threads``, :func:`~scenescore.thread_budget`) for
+large batches.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from .sampling import PLACEMENT
 from .scene import Scene, SceneError
 from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
+from .threads import torch_threads
 from .training import TrainConfig, train
 
 __all__ = [
@@ -97,11 +100,12 @@ def place_many(
     for i, s in enumerate(scenes):
         if s.unknown:
             groups.setdefault(len(s), []).append(i)
-    for idx in groups.values():
-        problems = [placement_problem(model, scenes[i], energy_only) for i in idx]
-        results = solver.solve_many(problems, seed=seed)
-        for i, r in zip(idx, results):
-            out[i] = _filled(scenes[i], r)
+    with torch_threads(1):  # tiny tensors; each batched chain chooses threads for its particles
+        for idx in groups.values():
+            problems = [placement_problem(model, scenes[i], energy_only) for i in idx]
+            results = solver.solve_many(problems, seed=seed)
+            for i, r in zip(idx, results):
+                out[i] = _filled(scenes[i], r)
     return out
 
 
@@ -132,8 +136,9 @@ def place(
     """
     if not scene.unknown:
         return scene.copy()
-    r = solve(placement_problem(model, scene, energy_only), LangevinSolver(options or PLACE), seed=seed)
-    return _filled(scene, r)
+    with torch_threads(1):  # tiny tensors; the chain chooses threads for its particles
+        r = solve(placement_problem(model, scene, energy_only), LangevinSolver(options or PLACE), seed=seed)
+        return _filled(scene, r)
 
 
 class Placer(Protocol):

@@ -29,6 +29,7 @@ from .models import SceneTensors, ScoreModel
 from .models.trust import reference, touching_bound
 from .sampling import TRAINING, LangevinConfig, langevin, uniform_init
 from .scene import Scene, SceneError
+from .threads import threads_for, torch_threads
 
 __all__ = [
     "TrainConfig",
@@ -328,7 +329,8 @@ def train(
     check_training_data(scenes)
     writer = summary_writer(log_dir) if log_dir is not None else None
     try:
-        return _train(scenes, cfg, encoder, seed, progress, validation, writer)
+        with torch_threads(1):  # tiny tensors; the training loop chooses threads for its batch
+            return _train(scenes, cfg, encoder, seed, progress, validation, writer)
     finally:
         if writer is not None:
             writer.close()
@@ -377,60 +379,65 @@ def _train(
     t0 = time.perf_counter()
     bar = tqdm(range(cfg.iterations), desc="train", disable=not progress, unit="it", dynamic_ncols=True)
     for it in bar:
-        rows = torch.randperm(s_count, generator=gen)[:bs]
-        buf.restart(
-            (torch.rand(s_count, k, generator=gen) < cfg.restart)
-            & torch.isin(torch.arange(s_count), rows)[:, None]
-        )
-        batch = data.index(rows)
-        if cfg.feature_noise:
-            noise = torch.randn(batch.feats.shape, generator=gen, dtype=batch.feats.dtype) * cfg.feature_noise
-            batch = replace(batch, feats=batch.feats + noise)
-        rep = batch.repeat(k)  # (bs * k, ...)
-        model.net.eval()
-        init = buf.poses[rows].reshape(bs * k, *buf.poses.shape[2:])
-        movable = buf.movable[rows].reshape(bs * k, -1)
-
-        def energy(x: torch.Tensor, rep: SceneTensors = rep) -> torch.Tensor:
-            return model.energy(x, rep)
-
-        age = buf.age[rows].reshape(-1)
-        neg, _ = langevin(
-            energy, init, movable, rep.lo, rep.hi, chain_cfg, gen, age=age, run_steps=cfg.chain_steps
-        )
-        buf.poses[rows] = neg.reshape(bs, k, *neg.shape[1:])
-        buf.age[rows] += cfg.chain_steps
-        model.net.train()
-        e_pos = model.energy(batch.poses, batch)
-        e_neg = model.energy(neg, rep).reshape(bs, k)
-        if cfg.perturbed:
-            pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
-            e_pert = model.energy(pert, batch.repeat(cfg.perturbed)).reshape(bs, cfg.perturbed)
-            e_neg = torch.cat([e_neg, e_pert], dim=1)
-        loss = infonce = infonce_loss(e_pos, e_neg)
-        if cfg.energy_reg:
-            loss = loss + cfg.energy_reg * (e_pos.pow(2).mean() + e_neg.pow(2).mean())
-        if cfg.grad_penalty:
-            x = neg.detach().requires_grad_(True)
-            (g,) = torch.autograd.grad(model.energy(x, rep).sum(), x, create_graph=True)
-            gmax = g.abs().amax(dim=(1, 2))
-            loss = loss + cfg.grad_penalty * F.relu(gmax - cfg.grad_margin).pow(2).mean()
-        if not torch.isfinite(loss):
-            raise FloatingPointError(
-                f"train: loss became {loss.item()} at iteration {it}; lower TrainConfig.lr"
+        # the chains and the loss run on bs * k pose sets: threads chosen for that batch (re-chosen every
+        # iteration, so a machine that gets busy mid-run is met with fewer), restored after
+        with torch_threads(threads_for(bs * k)):
+            rows = torch.randperm(s_count, generator=gen)[:bs]
+            buf.restart(
+                (torch.rand(s_count, k, generator=gen) < cfg.restart)
+                & torch.isin(torch.arange(s_count), rows)[:, None]
             )
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.net.parameters(), 10.0)
-        opt.step()
-        if writer is not None:
-            writer.add_scalar("train/loss", loss.item(), it)
-            writer.add_scalar("train/infonce", infonce.item(), it)
-            writer.add_scalar("train/lr", opt.param_groups[0]["lr"], it)
-        sched.step()
-        history.append(loss.item())
-        if it % 20 == 0:
-            bar.set_postfix(loss=f"{sum(history[-20:]) / len(history[-20:]):.3f}")
+            batch = data.index(rows)
+            if cfg.feature_noise:
+                noise = (
+                    torch.randn(batch.feats.shape, generator=gen, dtype=batch.feats.dtype) * cfg.feature_noise
+                )
+                batch = replace(batch, feats=batch.feats + noise)
+            rep = batch.repeat(k)  # (bs * k, ...)
+            model.net.eval()
+            init = buf.poses[rows].reshape(bs * k, *buf.poses.shape[2:])
+            movable = buf.movable[rows].reshape(bs * k, -1)
+
+            def energy(x: torch.Tensor, rep: SceneTensors = rep) -> torch.Tensor:
+                return model.energy(x, rep)
+
+            age = buf.age[rows].reshape(-1)
+            neg, _ = langevin(
+                energy, init, movable, rep.lo, rep.hi, chain_cfg, gen, age=age, run_steps=cfg.chain_steps
+            )
+            buf.poses[rows] = neg.reshape(bs, k, *neg.shape[1:])
+            buf.age[rows] += cfg.chain_steps
+            model.net.train()
+            e_pos = model.energy(batch.poses, batch)
+            e_neg = model.energy(neg, rep).reshape(bs, k)
+            if cfg.perturbed:
+                pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
+                e_pert = model.energy(pert, batch.repeat(cfg.perturbed)).reshape(bs, cfg.perturbed)
+                e_neg = torch.cat([e_neg, e_pert], dim=1)
+            loss = infonce = infonce_loss(e_pos, e_neg)
+            if cfg.energy_reg:
+                loss = loss + cfg.energy_reg * (e_pos.pow(2).mean() + e_neg.pow(2).mean())
+            if cfg.grad_penalty:
+                x = neg.detach().requires_grad_(True)
+                (g,) = torch.autograd.grad(model.energy(x, rep).sum(), x, create_graph=True)
+                gmax = g.abs().amax(dim=(1, 2))
+                loss = loss + cfg.grad_penalty * F.relu(gmax - cfg.grad_margin).pow(2).mean()
+            if not torch.isfinite(loss):
+                raise FloatingPointError(
+                    f"train: loss became {loss.item()} at iteration {it}; lower TrainConfig.lr"
+                )
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.net.parameters(), 10.0)
+            opt.step()
+            if writer is not None:
+                writer.add_scalar("train/loss", loss.item(), it)
+                writer.add_scalar("train/infonce", infonce.item(), it)
+                writer.add_scalar("train/lr", opt.param_groups[0]["lr"], it)
+            sched.step()
+            history.append(loss.item())
+            if it % 20 == 0:
+                bar.set_postfix(loss=f"{sum(history[-20:]) / len(history[-20:]):.3f}")
     model.net.eval()
     model.info = {
         "train_config": cfg.to_dict(),
@@ -466,11 +473,12 @@ def heldout_loss(
     def energy(x: torch.Tensor) -> torch.Tensor:
         return model.energy(x, rep)
 
-    neg, _ = langevin(energy, init, movable, rep.lo, rep.hi, replace(TRAINING, final_descent=0), gen)
-    with torch.no_grad():
-        loss = infonce_loss(
-            model.energy(st.poses, st), model.energy(neg, rep).reshape(len(scenes), negatives)
-        )
+    with torch_threads(threads_for(rep.mask.shape[0])):
+        neg, _ = langevin(energy, init, movable, rep.lo, rep.hi, replace(TRAINING, final_descent=0), gen)
+        with torch.no_grad():
+            loss = infonce_loss(
+                model.energy(st.poses, st), model.energy(neg, rep).reshape(len(scenes), negatives)
+            )
     return float(loss), math.log(negatives + 1)
 
 

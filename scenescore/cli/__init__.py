@@ -87,6 +87,8 @@ SEED = number(-(2**63), 2**63 - 1, integer=True)  # what torch's generators take
 
 def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None = None) -> None:
     """Options every command has."""
+    from ..threads import MAX_THREADS
+
     p.add_argument("--seed", type=SEED, default=seed, help=seed_help or f"random seed (default {seed})")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument(
@@ -95,6 +97,13 @@ def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None 
         default=None,
         help="memory budget in GB: larger allocations are refused before they are made "
         "(default: SCENESCORE_MEMORY_GB, else half of the machine's memory)",
+    )
+    p.add_argument(
+        "--threads",
+        type=number(1, MAX_THREADS, integer=True),
+        default=None,
+        help="torch threads for this run: large batches use this many, tiny tensors one (default: "
+        "automatic, one for tiny tensors and the free cores for large batches)",
     )
 
 
@@ -120,11 +129,13 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         from ..memory import budget, set_budget
+        from ..threads import thread_budget
 
         set_budget(getattr(args, "memory_gb", None))  # this run's budget; a bad value is an error now
         budget()
         _check_outputs(args)
-        rc = args.func(args)
+        with thread_budget(getattr(args, "threads", None)):  # torch's setting restored on the way out
+            rc = args.func(args)
     except _user_errors() as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
         print(f"scenescore {args.command}: error: {msg}", file=sys.stderr)

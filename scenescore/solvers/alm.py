@@ -66,7 +66,7 @@ class ALMOptions:
     step: float = 0.01  # a gradient step's largest coordinate move (metres; radians for an angle)
     step_max: float = 0.1  # the largest move of any coordinate in one step
     polish: bool = True  # keep minimising the objective once feasible; False: a particle stops when feasible
-    threads: int | None = None  # torch threads; None: all of them for 256 particles or more, else one
+    threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
 
     def __post_init__(self) -> None:
         check_number("alm", "iterations", self.iterations, 0, MAX_ITERATIONS, integer=True)
@@ -323,7 +323,7 @@ class ALMSolver(StageSolver):
     takes_batch = True
 
     def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """Every torch thread for 256 particles or more (their tensors pay for the pool), one for fewer."""
+        """``threads_for`` the particles: the budget (on free cores) for 256 or more, one for fewer."""
         return threads_for(1 if init is None else problem.full(init).shape[0])
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:

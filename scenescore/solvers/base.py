@@ -1,18 +1,18 @@
-"""The solver protocol, the base of the built-in stages, and what stages share (start poses, threads)."""
+"""The solver protocol, the base of the built-in stages, and what stages share (start poses, threads:
+:mod:`scenescore.threads`)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any, ClassVar, Protocol
 
 import torch
 from torch import Tensor
 
 from ..problem import Problem
+from ..threads import POOL_ROWS, threads_for, torch_threads
 from .result import Result
 
-__all__ = ["Solver", "StageSolver", "start_poses", "threads_for", "torch_threads"]
+__all__ = ["Solver", "StageSolver", "start_poses", "POOL_ROWS", "threads_for", "torch_threads"]
 
 
 class Solver(Protocol):
@@ -22,31 +22,6 @@ class Solver(Protocol):
     def name(self) -> str: ...
 
     def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result: ...
-
-
-#: pose sets from which a batch's tensors are big enough to pay for torch's thread pool
-POOL_ROWS = 256
-
-
-def threads_for(rows: int) -> int:
-    """Torch threads for a batch of ``rows`` pose sets: all of them from :data:`POOL_ROWS` rows, else one."""
-    return torch.get_num_threads() if rows >= POOL_ROWS else 1
-
-
-@contextmanager
-def torch_threads(n: int) -> Iterator[int]:
-    """Run torch on ``n`` intra-op threads inside the block, then restore the caller's setting.
-
-    The built-in solvers work on tiny tensors, where torch's thread pool costs far more than it saves
-    (measured: a 32-element ``min`` takes 11 ms with 2 threads on a busy 2-core machine, 3 us with 1);
-    large particle populations pay for it.
-    """
-    old = torch.get_num_threads()
-    torch.set_num_threads(max(1, int(n)))
-    try:
-        yield torch.get_num_threads()
-    finally:
-        torch.set_num_threads(old)
 
 
 class StageSolver:

@@ -55,7 +55,7 @@ class LangevinOptions:
     particles: int = 64
     candidates: int = 0  # uniform draws screened by cost (forward only) for the particles' start; 0: none
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
-    threads: int | None = None  # torch threads; None: all of them for 256 particles or more, else one
+    threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
     chain: LangevinConfig = SAMPLING
 
     def __post_init__(self) -> None:
@@ -95,8 +95,8 @@ class LangevinSolver(StageSolver):
         self.options = options if options is not None else LangevinOptions.from_flat(**flat)
 
     def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """Every thread torch has for large populations (their tensors are big enough to pay for the
-        pool), one for small ones."""
+        """``threads_for`` the population: the budget (on free cores) for large ones, whose tensors are
+        big enough to pay for the pool, one for small ones."""
         return threads_for(self.options.particles)
 
     def solve_many(
@@ -111,7 +111,9 @@ class LangevinSolver(StageSolver):
             raise ProblemError(
                 f"langevin: init: expected {len(problems)} starts, one per problem, got {len(init)}"
             )
-        n = self.options.threads if self.options.threads is not None else self.default_threads(problems[0])
+        # the batch is every problem's particles at once
+        rows = self.options.particles * len(problems)
+        n = self.options.threads if self.options.threads is not None else threads_for(rows)
         with torch_threads(n) as used:
             out = self._run(list(problems), None if init is None else list(init), seed)
         for r in out:

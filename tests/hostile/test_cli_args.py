@@ -208,6 +208,15 @@ CASES = [
     ("demo --iterations -1", "demo --out {w}/demo --iterations -1", ("iterations",)),
     ("experiment --out a file", "experiment missing --out {w}/file", ("--out", "is a file")),
     ("experiment --seeds 0", "experiment missing --out {w}/exp --seeds 0", ("--seeds",)),
+    # --threads, on every command: an integer >= 1
+    (
+        "place --threads 0",
+        "place {w}/m.ckpt {w}/scene.json --threads 0",
+        ("--threads", "integer >= 1", "'0'"),
+    ),
+    ("train --threads -2", "train {w}/data.jsonl --out {w}/x.ckpt --threads -2", ("--threads", "'-2'")),
+    ("solve --threads 1.5", "solve {w}/p.yaml --threads 1.5", ("--threads", "'1.5'")),
+    ("demo --threads two", "demo --out {w}/demo --threads two", ("--threads", "'two'")),
 ]
 
 

@@ -1,0 +1,98 @@
+"""The thread budget: scoped, checked, capping the automatic choices; training and placement leave torch's
+setting as they found it."""
+
+from dataclasses import replace
+
+import pytest
+import torch
+
+import scenescore as ss
+import scenescore.threads as th
+from scenescore.errors import ConfigError
+from scenescore.placement import place
+from scenescore.sampling import PLACEMENT
+from scenescore.solvers.langevin import LangevinOptions
+from scenescore.training import TrainConfig, train
+
+SHORT = replace(PLACEMENT, steps=3, final_descent=1)
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
+def test_budget_is_scoped_and_nests():
+    with ss.thread_budget(3) as n:
+        assert n == 3 and torch.get_num_threads() == 3 and th.budget() == 3
+        with ss.thread_budget(2):
+            assert torch.get_num_threads() == 2 and th.threads_for(th.POOL_ROWS) == 2
+        assert torch.get_num_threads() == 3 and th.budget() == 3
+    assert torch.get_num_threads() == 1 and th.budget() == 1
+    with ss.thread_budget(None) as n:  # automatic: torch's own setting, untouched
+        assert n == 1 and torch.get_num_threads() == 1
+
+
+def test_budget_restored_after_an_error():
+    with pytest.raises(RuntimeError), ss.thread_budget(2):
+        raise RuntimeError("boom")
+    assert torch.get_num_threads() == 1 and th.budget() == 1
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2", 10**6])
+def test_bad_budget_is_one_line(bad):
+    with pytest.raises(ConfigError, match=r"thread_budget: threads: expected an integer >= 1") as e:
+        with ss.thread_budget(bad):
+            pass
+    assert "\n" not in str(e.value)
+    assert torch.get_num_threads() == 1
+
+
+def test_given_budget_is_used_by_heavy_work_and_tiny_tensors_get_one(monkeypatch):
+    monkeypatch.setattr(th, "free_cores", lambda: 0.0)  # a busy machine: ignored when the budget is given
+    with ss.thread_budget(4):
+        assert th.threads_for(th.POOL_ROWS) == 4
+        assert th.threads_for(th.POOL_ROWS - 1) == 1
+
+
+def test_automatic_choice_takes_free_cores_within_the_budget(monkeypatch):
+    torch.set_num_threads(4)
+    monkeypatch.setattr(th, "free_cores", lambda: 0.1)
+    assert th.threads_for(th.POOL_ROWS) == 1  # every core busy with other processes
+    monkeypatch.setattr(th, "free_cores", lambda: 2.0)
+    assert th.threads_for(th.POOL_ROWS) == 2
+    monkeypatch.setattr(th, "free_cores", lambda: 16.0)
+    assert th.threads_for(th.POOL_ROWS) == 4  # never above the budget
+    monkeypatch.setattr(th, "free_cores", lambda: None)  # cannot tell: the budget
+    assert th.threads_for(th.POOL_ROWS) == 4
+    assert th.threads_for(8) == 1
+
+
+def test_choices_inside_a_one_thread_block_see_the_callers_budget(monkeypatch):
+    torch.set_num_threads(3)
+    monkeypatch.setattr(th, "free_cores", lambda: 8.0)
+    with th.torch_threads(1):
+        assert torch.get_num_threads() == 1
+        assert th.budget() == 3 and th.threads_for(th.POOL_ROWS) == 3
+    assert torch.get_num_threads() == 3
+
+
+def test_free_cores_is_a_share_of_this_process_cpus():
+    free = th.free_cores()
+    if free is None:
+        pytest.skip("no /proc/stat here")
+    assert 0.0 <= free <= len(th._cpus() or range(th.os.cpu_count() or 1))
+
+
+def test_train_and_place_leave_torchs_setting_alone():
+    scenes = ss.scenarios.get("dining").generate(4, 0)
+    torch.set_num_threads(2)
+    model = train(scenes, TrainConfig(iterations=2, negatives=2), seed=0, progress=False)
+    assert torch.get_num_threads() == 2
+    with ss.thread_budget(1):
+        place(model, scenes[0].without("fork_0"), LangevinOptions(particles=4, chain=SHORT), seed=0)
+        assert torch.get_num_threads() == 1
+    assert torch.get_num_threads() == 2
