@@ -14,6 +14,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.errors", 0),  # settings errors and range checks (imports nothing of the package)
     ("scenescore.textfiles", 0),  # bounded, decoded reading of JSON and YAML files
     ("scenescore.memory", 0),  # the memory budget, the checks made before large allocations, chunk sizes
+    ("scenescore.devices", 0),  # the device a model, a problem and its random numbers live on
     ("scenescore.scene", 0),
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),
