@@ -60,7 +60,10 @@ class Footprints:
     names: list[str]
 
     @classmethod
-    def from_scene(cls, scene: Scene, dtype: torch.dtype = torch.float64) -> Footprints:
+    def from_scene(
+        cls, scene: Scene, dtype: torch.dtype = torch.float64, device: torch.device | None = None
+    ) -> Footprints:
+        """The footprints of ``scene``'s objects, on ``device`` (default the CPU)."""
         cores = [footprint_core(o) for o in scene.objects]
         k = max(len(c) for c, _ in cores)
         verts = np.zeros((len(cores), k, 2))
@@ -73,9 +76,9 @@ class Footprints:
                 valid[i, :m] = True
         radius = np.array([r for _, r in cores])
         return cls(
-            torch.as_tensor(verts, dtype=dtype),
-            torch.as_tensor(valid),
-            torch.as_tensor(radius, dtype=dtype),
+            torch.as_tensor(verts, dtype=dtype, device=device),
+            torch.as_tensor(valid, device=device),
+            torch.as_tensor(radius, dtype=dtype, device=device),
             [o.name for o in scene.objects],
         )
 

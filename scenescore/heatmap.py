@@ -48,7 +48,8 @@ def energy_grid(
         for a in range(0, fx.size, CHUNK):
             poses = np.repeat(base[None], len(fx[a : a + CHUNK]), axis=0)
             poses[:, k, 0], poses[:, k, 1], poses[:, k, 2] = fx[a : a + CHUNK], fy[a : a + CHUNK], theta
-            out.append(fn(torch.as_tensor(poses, dtype=model.dtype)).double().numpy())
+            x = torch.as_tensor(poses, dtype=model.dtype, device=model.device)
+            out.append(fn(x).double().cpu().numpy())
     return xs, ys, np.concatenate(out).reshape(gx.shape)
 
 

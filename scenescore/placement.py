@@ -132,7 +132,7 @@ def place(
     This is ``ss.solve(placement_problem(model, scene), LangevinSolver(options or PLACE), seed=seed)``:
     placing and solving give the same answer for the same model, seed and options. By default the
     placed objects keep off the others (:func:`non_overlap`); ``energy_only`` places by the learned
-    energy alone.
+    energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
     """
     if not scene.unknown:
         return scene.copy()
@@ -162,9 +162,17 @@ class SceneScorePlacer:
     encoder: Encoder | None = None
     progress: bool = False
     model: ScoreModel | None = None
+    device: str | None = None  # where the model trains and places (default the CPU)
 
     def fit(self, scenes: list[Scene], seed: int = 0) -> SceneScorePlacer:
-        self.model = train(scenes, self.train_config, encoder=self.encoder, seed=seed, progress=self.progress)
+        self.model = train(
+            scenes,
+            self.train_config,
+            encoder=self.encoder,
+            seed=seed,
+            progress=self.progress,
+            device=self.device,
+        )
         return self
 
     def predict(self, scenes: list[Scene], seed: int = 0) -> list[Scene]:

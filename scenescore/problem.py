@@ -3,6 +3,9 @@
 ``Problem(scene, cost, movable=["mug"])`` binds the cost to the scene. Objects with ``pose: null`` are
 always movable (the first solver stage initialises them); fixed objects never are. With ``movable=None``
 the unknown objects move if there are any, else every object that is not fixed.
+
+A problem lives on one device (``problem.device``): the device of the learned energy's model by default,
+or the ``device`` given; its cost is bound there and its solvers' particles are drawn there.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import torch
 from torch import Tensor
 
 from .costs import Cost, Sum, Violation, as_sum
+from .devices import resolve_device
 from .sampling import uniform_init
 from .scene import Scene, SceneError, fits_bounds
 
@@ -46,9 +50,17 @@ class Feasibility:
 
 
 class Problem:
-    """A scene, a cost bound to it, and the objects that may move."""
+    """A scene, a cost bound to it, and the objects that may move; ``device``: where its tensors live
+    (default: the device of the cost's learned energy, else the CPU)."""
 
-    def __init__(self, scene: Scene, cost: Cost, movable: Sequence[str] | None = None, name: str = "problem"):
+    def __init__(
+        self,
+        scene: Scene,
+        cost: Cost,
+        movable: Sequence[str] | None = None,
+        name: str = "problem",
+        device: str | torch.device | None = None,
+    ):
         if not isinstance(scene, Scene):
             raise ProblemError(f"Problem: expected a scenescore Scene, got {type(scene).__name__}")
         self.scene = scene
@@ -82,7 +94,9 @@ class Problem:
                 )
         self.movable_mask = np.array([o.name in names for o in scene.objects])
         self.known = np.array([o.name not in unknown for o in scene.objects])
-        self.cost: Sum = as_sum(cost).bind(scene, self.movable_mask)
+        own = as_sum(cost).model_device()
+        self.device = resolve_device(device) if device is not None else own or torch.device("cpu")
+        self.cost: Sum = as_sum(cost).bind(scene, self.movable_mask, device=self.device)
 
     # -- shapes and bounds -----------------------------------------------------------------------
     @property
@@ -95,28 +109,32 @@ class Problem:
 
     @property
     def lo(self) -> Tensor:
-        return torch.tensor(self.scene.bounds[0], dtype=torch.float64)
+        return torch.tensor(self.scene.bounds[0], dtype=torch.float64, device=self.device)
 
     @property
     def hi(self) -> Tensor:
-        return torch.tensor(self.scene.bounds[1], dtype=torch.float64)
+        return torch.tensor(self.scene.bounds[1], dtype=torch.float64, device=self.device)
 
     def base_poses(self) -> Tensor:
         """The scene's poses ``(N, 3)`` (unknown ones 0), float64."""
-        return torch.tensor(self.scene.poses(), dtype=torch.float64)
+        return torch.tensor(self.scene.poses(), dtype=torch.float64, device=self.device)
 
     def initial(self, particles: int, generator: torch.Generator, keep_known: bool = False) -> Tensor:
-        """Initial particles ``(B, N, 3)``: moving objects uniform in the bounds (``keep_known``: only unknown ones)."""
+        """Initial particles ``(B, N, 3)``: moving objects uniform in the bounds (``keep_known``: only unknown
+        ones), drawn by ``generator`` (best on :attr:`device`; one elsewhere draws there and is copied)."""
         x = self.base_poses()[None].repeat(particles, 1, 1)
         u = uniform_init((particles, self.n), self.lo, self.hi, generator, dtype=torch.float64)
         draw = self.movable_mask & (~self.known if keep_known else True)
-        mask = torch.as_tensor(draw)[None, :, None]
+        mask = torch.as_tensor(draw, device=self.device)[None, :, None]
         return torch.where(mask, u, x)
 
     def full(self, poses: Tensor | np.ndarray) -> Tensor:
-        """Poses as ``(B, N, 3)`` float64; a single ``(N, 3)`` pose set is given a batch of 1. Checks shapes."""
+        """Poses as ``(B, N, 3)`` float64 on :attr:`device`; a single ``(N, 3)`` pose set is given a batch of 1.
+        Checks shapes."""
         x = torch.as_tensor(
-            np.asarray(poses) if not isinstance(poses, Tensor) else poses, dtype=torch.float64
+            np.asarray(poses) if not isinstance(poses, Tensor) else poses,
+            dtype=torch.float64,
+            device=self.device,
         )
         if x.dim() == 2:
             x = x[None]
@@ -136,11 +154,15 @@ class Problem:
     def violation(self, poses: Tensor) -> Tensor:
         """The largest constraint violation per row ``(B,)`` (0 when the cost has no constraint)."""
         v = self.cost.violation(self.full(poses))
-        return torch.zeros(self.full(poses).shape[0], dtype=torch.float64) if v is None else v
+        return (
+            torch.zeros(self.full(poses).shape[0], dtype=torch.float64, device=self.device)
+            if v is None
+            else v
+        )
 
     def check(self, poses: np.ndarray | Tensor, tol: float = FEASIBILITY_TOL) -> Feasibility:
         """The exact check of one pose set ``(N, 3)``: each cost term checks itself, within ``tol`` m."""
-        p = np.asarray(self.full(poses)[0])
+        p = self.full(poses)[0].detach().cpu().numpy()
         found = [v for _, c in self.cost for v in c.check(p, tol)]
         return Feasibility(not found, found)
 

@@ -26,10 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import torch
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from .costs import Cost, CostError, CostSpec, cost_types
+from .devices import resolve_device
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError
 from .solvers import available, option_names
@@ -128,8 +130,9 @@ def _pydantic_error(
 class _Context:
     """What cost specs ask of the file: object names checked against the scene, the model loaded once."""
 
-    def __init__(self, scene: Scene, spec: ProblemSpec, root: Path, where: _Where):
+    def __init__(self, scene: Scene, spec: ProblemSpec, root: Path, where: _Where, device: Any = None):
         self.scene, self.spec, self.root, self.where = scene, spec, root, where
+        self.device = device  # where the model is loaded to
         self.at: KeyPath = ()
         self._model: Any = None
 
@@ -159,7 +162,7 @@ class _Context:
                 )
             from .models import load
 
-            self._model = load(mp)
+            self._model = load(mp, device=self.device)
         return self._model
 
 
@@ -217,8 +220,12 @@ def _check_solver_names(spec: ProblemSpec, where: _Where) -> None:
             raise ProblemError(f"{where(at)}: {e}") from None
 
 
-def load_problem(path: str | os.PathLike | None = None, text: str | None = None) -> LoadedProblem:
-    """Read a YAML problem file (or ``text``); every error names the file, line and key path."""
+def load_problem(
+    path: str | os.PathLike | None = None, text: str | None = None, device: str | torch.device | None = None
+) -> LoadedProblem:
+    """Read a YAML problem file (or ``text``); every error names the file, line and key path. ``device``
+    (default the CPU): where its model is loaded to and its problem lives."""
+    dev = resolve_device(device)
     p: Path | None
     if text is None:
         if path is None:
@@ -270,7 +277,7 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
         except SceneError as e:
             raise ProblemError(str(e)) from None
 
-    ctx = _Context(scene, spec, root, where)
+    ctx = _Context(scene, spec, root, where, dev)
     terms: list[Cost] = []
     for k, cs in enumerate(specs):
         ctx.at = ("costs", k)
@@ -282,7 +289,7 @@ def load_problem(path: str | os.PathLike | None = None, text: str | None = None)
     movable = ctx.objects(spec.movable, ("movable",))
     try:
         cost = sum(terms[1:], terms[0])
-        problem = Problem(scene, cost, movable=movable, name=p.stem if p else "problem")
+        problem = Problem(scene, cost, movable=movable, name=p.stem if p else "problem", device=dev)
     except (CostError, SceneError) as e:
         raise ProblemError(f"{where(('costs',))}: {e}") from None
     except ProblemError as e:

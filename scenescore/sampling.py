@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from .devices import draw
+from .devices import generator as make_generator
 from .errors import check_number
 
 __all__ = [
@@ -98,9 +100,10 @@ def uniform_init(
     generator: torch.Generator,
     dtype: torch.dtype = torch.float32,
 ) -> Tensor:
-    """Poses uniform inside the bounds, angles uniform: ``(B, N, 3)``; ``lo``/``hi`` are ``(2,)`` or ``(B, 2)``."""
+    """Poses uniform inside the bounds, angles uniform: ``(B, N, 3)`` on the device of ``lo``; ``lo``/``hi``
+    are ``(2,)`` or ``(B, 2)``."""
     b, n = shape
-    u = torch.rand(b, n, 3, generator=generator, dtype=dtype)
+    u = draw("rand", (b, n, 3), generator, lo.device, dtype)
     lo = lo.to(dtype).reshape(-1, 1, 2)
     hi = hi.to(dtype).reshape(-1, 1, 2)
     xy = lo + u[..., :2] * (hi - lo)
@@ -130,9 +133,10 @@ def resample(x: Tensor, e: Tensor, temperature: float, groups: int, generator: t
     p = x.shape[0] // groups
     e = finite_or_inf(e.reshape(groups, p))
     w = torch.softmax(-(e - e.min(dim=1, keepdim=True).values) / temperature, dim=1)  # (G, P)
-    u = (torch.rand(groups, 1, generator=generator, dtype=w.dtype) + torch.arange(p, dtype=w.dtype)) / p
+    offsets = torch.arange(p, dtype=w.dtype, device=w.device)
+    u = (draw("rand", (groups, 1), generator, w.device, w.dtype) + offsets) / p
     idx = torch.searchsorted(torch.cumsum(w, dim=1), u).clamp(max=p - 1)  # (G, P)
-    return x[(idx + p * torch.arange(groups)[:, None]).flatten()]
+    return x[(idx + p * torch.arange(groups, device=idx.device)[:, None]).flatten()]
 
 
 def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> tuple[Tensor, Tensor]:
@@ -166,25 +170,27 @@ def langevin(
     ``age``: ``(B,)`` steps each chain has already run (persistent chains continue their schedule);
     ``run_steps``: how many steps to run now (default ``cfg.steps``, the schedule's length).
     ``groups``: particles form this many contiguous groups (one per scene) for ``cfg.resample``.
-    No gradient flows through the chain.
+    No gradient flows through the chain. Everything runs on the device of ``init``; ``generator`` (default:
+    seed 0 on that device) draws the noise.
     """
     cfg = cfg or LangevinConfig()
     if generator is None:
-        generator = torch.Generator().manual_seed(0)
+        generator = make_generator(0, init.device)
     x = init.detach().clone()
     b, n, _ = x.shape
     dtype = x.dtype
     lo = lo.to(dtype).reshape(-1, 1, 2).expand(b, 1, 2)
     hi = hi.to(dtype).reshape(-1, 1, 2).expand(b, 1, 2)
     half = (hi - lo) / 2  # (B, 1, 2)
-    scale = torch.cat([half, torch.full((b, 1, 1), math.pi, dtype=dtype)], dim=-1)  # (B, 1, 3)
+    pi = torch.full((b, 1, 1), math.pi, dtype=dtype, device=x.device)
+    scale = torch.cat([half, pi], dim=-1)  # (B, 1, 3)
     move_b = movable.reshape(-1, n).expand(b, n)[..., None].bool()  # (B, N, 1)
 
     def step(x: Tensor, lam: float | Tensor, noise: float) -> Tensor:
         _, g = _grad(energy_fn, x)
         gn = g * scale  # gradient in normalised coordinates
-        w = torch.randn(x.shape, generator=generator, dtype=dtype) * noise if noise > 0 else 0.0
-        clip = torch.as_tensor(cfg.clip(lam), dtype=dtype)
+        w = draw("randn", tuple(x.shape), generator, x.device, dtype) * noise if noise > 0 else 0.0
+        clip = torch.as_tensor(cfg.clip(lam), dtype=dtype, device=x.device)
         delta = torch.maximum(torch.minimum(lam * (gn + w), clip), -clip)
         moved = x - delta * scale
         moved = torch.cat(
@@ -224,4 +230,5 @@ def best_of(poses: Tensor, energies: Tensor, groups: int) -> tuple[Tensor, Tenso
     p = poses.shape[0] // groups
     e = finite_or_inf(energies.reshape(groups, p))
     idx = e.argmin(dim=1)
-    return poses.reshape(groups, p, *poses.shape[1:])[torch.arange(groups), idx], e[torch.arange(groups), idx]
+    rows = torch.arange(groups, device=idx.device)
+    return poses.reshape(groups, p, *poses.shape[1:])[rows, idx], e[rows, idx]

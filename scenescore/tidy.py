@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from .costs import Bounds, Cost, Displacement, HingeCollision, LearnedEnergy, MoveCount, ReachLimit
+from .devices import generator
 from .errors import check_number
 from .models import ScoreModel
 from .placement import OVERLAP_WEIGHT, non_overlap
@@ -381,7 +382,7 @@ def _replacements(
 
     flat = [(k, names) for k, sets in jobs.items() for names in sets if names]
     blanks, starts = [], []
-    gen = torch.Generator().manual_seed(int(seed))
+    gen = generator(seed, model.device)
     draws, keep = max(o.propose.candidates, o.propose.particles), o.propose.particles
     for k, names in flat:
         blank = scenes[k].copy()
@@ -395,7 +396,7 @@ def _replacements(
             rows = [scenes[k].index(m) for m in names]
             moved = [i for i in rows if not np.array_equal(warm[k][i], now[i])]
             if moved:
-                x[: draws // 2, moved] = torch.as_tensor(warm[k][moved], dtype=x.dtype)
+                x[: draws // 2, moved] = torch.as_tensor(warm[k][moved], dtype=x.dtype, device=x.device)
         blanks.append(p)
         starts.append(screen(p.cost, x, keep))
     found: dict[int, tuple[float, np.ndarray, list[str]]] = {}
@@ -461,7 +462,7 @@ def _by_size(problems: Sequence[Problem]) -> list[list[int]]:
 def _cost(problem: Problem, x: np.ndarray | torch.Tensor) -> np.ndarray:
     """The whole cost of ``problem`` at each row of ``x`` ``(B, N, 3)``."""
     with torch.no_grad():
-        return problem.evaluate(torch.as_tensor(np.asarray(x), dtype=torch.float64)).numpy()
+        return problem.evaluate(problem.full(x)).cpu().numpy()
 
 
 def _finish(

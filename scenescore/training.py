@@ -23,6 +23,7 @@ import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
+from .devices import draw, generator, resolve_device
 from .encoders import Encoder, FootprintEncoder
 from .errors import ConfigError, check_number
 from .models import SceneTensors, ScoreModel
@@ -139,8 +140,8 @@ def infonce_loss(e_pos: torch.Tensor, e_neg: torch.Tensor) -> torch.Tensor:
     return F.cross_entropy(logits, target)
 
 
-def _log_uniform(n: int, lo: float, hi: float, gen: torch.Generator) -> torch.Tensor:
-    return torch.exp(math.log(lo) + torch.rand(n, generator=gen) * (math.log(hi) - math.log(lo)))
+def _log_uniform(n: int, lo: float, hi: float, gen: torch.Generator, device: torch.device) -> torch.Tensor:
+    return torch.exp(math.log(lo) + draw("rand", (n,), gen, device) * (math.log(hi) - math.log(lo)))
 
 
 def data_scale(scenes: Sequence[Scene]) -> tuple[float, float]:
@@ -180,13 +181,14 @@ def perturbed_negatives(
     """``k`` copies of each true scene with one movable object displaced: ``(B * k, N, 3)``."""
     rep = batch.repeat(k)
     m, n = rep.mask.shape
+    dev = rep.poses.device
     real = rep.mask & ~rep.fixed
-    pick = torch.rand(m, n, generator=gen).masked_fill(~real, 2.0).argmin(dim=1)  # (M,)
-    sp = _log_uniform(m, *cfg.perturb_pos, gen) * length_scale
-    sa = _log_uniform(m, *cfg.perturb_angle, gen)
-    noise = torch.randn(m, 3, generator=gen) * torch.stack([sp, sp, sa], dim=1)
+    pick = draw("rand", (m, n), gen, dev).masked_fill(~real, 2.0).argmin(dim=1)  # (M,)
+    sp = _log_uniform(m, *cfg.perturb_pos, gen, dev) * length_scale
+    sa = _log_uniform(m, *cfg.perturb_angle, gen, dev)
+    noise = draw("randn", (m, 3), gen, dev) * torch.stack([sp, sp, sa], dim=1)
     x = rep.poses.clone()
-    rows = torch.arange(m)
+    rows = torch.arange(m, device=dev)
     x[rows, pick] = x[rows, pick] + noise.to(x.dtype)
     x[..., :2] = torch.minimum(torch.maximum(x[..., :2], rep.lo[:, None]), rep.hi[:, None])
     return x
@@ -198,20 +200,22 @@ class _ChainBuffer:
     def __init__(self, data: SceneTensors, k: int, cfg: TrainConfig, gen: torch.Generator):
         self.data, self.k, self.cfg, self.gen = data, k, cfg, gen
         s, n = data.mask.shape
+        self.device = dev = data.poses.device
         self.poses = data.poses[:, None].repeat(1, k, 1, 1)
-        self.movable = torch.zeros(s, k, n, dtype=torch.bool)
-        self.age = torch.zeros(s, k, dtype=torch.long)
-        self.restart(torch.ones(s, k, dtype=torch.bool))
+        self.movable = torch.zeros(s, k, n, dtype=torch.bool, device=dev)
+        self.age = torch.zeros(s, k, dtype=torch.long, device=dev)
+        self.restart(torch.ones(s, k, dtype=torch.bool, device=dev))
 
     def _masks(self, rows: torch.Tensor) -> torch.Tensor:
         """New movable masks for the scenes ``rows`` (one per chain), among real, non-fixed objects."""
         real = self.data.mask[rows] & ~self.data.fixed[rows]  # (M, N)
         m, n = real.shape
-        u = torch.rand(m, generator=self.gen)
-        scores = torch.rand(m, n, generator=self.gen).masked_fill(~real, 2.0)
-        single = torch.zeros(m, n, dtype=torch.bool)
-        single[torch.arange(m), scores.argmin(dim=1)] = True
-        subset = (torch.rand(m, n, generator=self.gen) < 0.5) & real
+        dev = self.device
+        u = draw("rand", (m,), self.gen, dev)
+        scores = draw("rand", (m, n), self.gen, dev).masked_fill(~real, 2.0)
+        single = torch.zeros(m, n, dtype=torch.bool, device=dev)
+        single[torch.arange(m, device=dev), scores.argmin(dim=1)] = True
+        subset = (draw("rand", (m, n), self.gen, dev) < 0.5) & real
         subset = subset | single  # never empty
         full = real
         cf, cs = self.cfg.full_fraction, self.cfg.full_fraction + self.cfg.single_fraction
@@ -316,6 +320,7 @@ def train(
     progress: bool = True,
     validation: Sequence[Scene] = (),
     log_dir: str | os.PathLike | None = None,
+    device: str | torch.device | None = None,
 ) -> ScoreModel:
     """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
 
@@ -324,13 +329,16 @@ def train(
     ``log_dir``: write a TensorBoard log there, every iteration's loss (``train/loss``, the InfoNCE loss
     with its regularisers; ``train/infonce`` alone) and learning rate (``train/lr``);
     :func:`log_validation` adds an evaluation's figures to it.
+    ``device`` (default the CPU): where the model trains and stays; its weights start the same on every
+    device (drawn on the CPU), its counter-examples' random numbers come from a generator there.
     """
     cfg = config or TrainConfig()
+    dev = resolve_device(device)
     check_training_data(scenes)
     writer = summary_writer(log_dir) if log_dir is not None else None
     try:
         with torch_threads(1):  # tiny tensors; the training loop chooses threads for its batch
-            return _train(scenes, cfg, encoder, seed, progress, validation, writer)
+            return _train(scenes, cfg, encoder, seed, progress, validation, writer, dev)
     finally:
         if writer is not None:
             writer.close()
@@ -344,9 +352,10 @@ def _train(
     progress: bool,
     validation: Sequence[Scene],
     writer: Any,
+    device: torch.device,
 ) -> ScoreModel:
     torch.manual_seed(seed)
-    gen = torch.Generator().manual_seed(seed)
+    gen = generator(seed, device)
     length, far = data_scale(scenes)
     length = cfg.length_scale or cfg.model.get("length_scale") or length
     reach = cfg.edge_range or cfg.model.get("edge_range") or (far if cfg.saturate_edges else None)
@@ -364,7 +373,7 @@ def _train(
             "edge_range": reach,
             "walls": bool(walls),
         },
-    )
+    ).to(device)
     data = model.tensors(scenes)
     s_count = len(scenes)
     buf = _ChainBuffer(data, cfg.negatives, cfg, gen)
@@ -382,16 +391,15 @@ def _train(
         # the chains and the loss run on bs * k pose sets: threads chosen for that batch (re-chosen every
         # iteration, so a machine that gets busy mid-run is met with fewer), restored after
         with torch_threads(threads_for(bs * k)):
-            rows = torch.randperm(s_count, generator=gen)[:bs]
+            rows = torch.randperm(s_count, generator=gen, device=gen.device).to(device)[:bs]
             buf.restart(
-                (torch.rand(s_count, k, generator=gen) < cfg.restart)
-                & torch.isin(torch.arange(s_count), rows)[:, None]
+                (draw("rand", (s_count, k), gen, device) < cfg.restart)
+                & torch.isin(torch.arange(s_count, device=device), rows)[:, None]
             )
             batch = data.index(rows)
             if cfg.feature_noise:
-                noise = (
-                    torch.randn(batch.feats.shape, generator=gen, dtype=batch.feats.dtype) * cfg.feature_noise
-                )
+                noise = draw("randn", tuple(batch.feats.shape), gen, device, batch.feats.dtype)
+                noise = noise * cfg.feature_noise
                 batch = replace(batch, feats=batch.feats + noise)
             rep = batch.repeat(k)  # (bs * k, ...)
             model.net.eval()
@@ -459,8 +467,8 @@ def heldout_loss(
     model: ScoreModel, scenes: Sequence[Scene], negatives: int = 16, seed: int = 0
 ) -> tuple[float, float]:
     """InfoNCE on ``scenes`` against fresh counter-examples (Langevin chains moving every movable object
-    from uniform starts, the training schedule run to its end): ``(loss, chance)``."""
-    gen = torch.Generator().manual_seed(seed)
+    from uniform starts, the training schedule run to its end): ``(loss, chance)``; on the model's device."""
+    gen = generator(seed, model.device)
     st = model.tensors(scenes)
     rep = st.repeat(negatives)
     movable = rep.mask & ~rep.fixed

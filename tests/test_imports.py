@@ -15,6 +15,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.textfiles", 0),  # bounded, decoded reading of JSON and YAML files
     ("scenescore.memory", 0),  # the memory budget, the checks made before large allocations, chunk sizes
     ("scenescore.threads", 0),  # the run's torch thread budget, the count chosen per batch, scoped setting
+    ("scenescore.devices", 0),  # the device a model, a problem and its random numbers live on
     ("scenescore.scene", 0),
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),

@@ -10,6 +10,10 @@ import argparse
 import importlib
 import os
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import torch
 
 # modules of this package that add sub-commands, in the order --help lists them
 COMMAND_MODULES = ["demo", "data", "evaluate", "place", "tidy", "experiment", "problems", "heatmap", "export"]
@@ -105,6 +109,24 @@ def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None 
         help="torch threads for this run: large batches use this many, tiny tensors one (default: "
         "automatic, one for tiny tensors and the free cores for large batches)",
     )
+
+
+def add_device(p: argparse.ArgumentParser) -> None:
+    """``--device`` (the commands that run a model: train, place, solve, compare, experiment); read it
+    with :func:`device_of`."""
+    p.add_argument(
+        "--device",
+        default="cpu",
+        help="where the model and its tensors run: cpu, cuda or cuda:N (default cpu)",
+    )
+
+
+def device_of(args: argparse.Namespace) -> torch.device:
+    """``--device`` as a torch device; one that is unknown or missing on this machine is a one-line error
+    naming the option."""
+    from ..devices import resolve_device
+
+    return resolve_device(args.device, "--device")
 
 
 FOLDER_OUTPUTS = {"demo", "experiment"}  # commands whose --out is a folder

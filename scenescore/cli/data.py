@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common, number
+from . import UserError, add_common, add_device, device_of, number
 
 PPM = number(0, open_lo=True)  # pixels per metre
 
@@ -99,6 +99,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the held-out figures (needs the 'tensorboard' extra)",
     )
     add_common(p)
+    add_device(p)
     p.set_defaults(func=run_train)
 
 
@@ -141,6 +142,7 @@ def run_train(args: argparse.Namespace) -> int:
     # settings first: a bad value fails before any data is read or any training is done
     given = {"iterations": args.iterations, "negatives": args.negatives}
     cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
+    device = device_of(args)
     if args.log_dir is not None:
         from ..scene import check_output_path
         from ..training import require_tensorboard
@@ -183,6 +185,7 @@ def run_train(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         validation=held,
         log_dir=args.log_dir,
+        device=device,
     )
     info = model.info
     print(

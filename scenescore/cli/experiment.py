@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from . import UserError, add_common
+from . import UserError, add_common, add_device, device_of
 
 if TYPE_CHECKING:
     from ..experiments.report import Row
@@ -84,6 +84,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     add_common(p)
+    add_device(p)
     p.set_defaults(func=run)
 
 
@@ -96,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--seeds must be at least 1, got {args.seeds}")
     if args.jobs < 1:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
+    args.device = device_of(args)  # checked before any work; every runner passes it on
     names = EXPERIMENTS if args.name == "all" else [args.name]
     sections: list[str] = []
     for name in names:
@@ -153,6 +155,7 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         progress=not args.quiet,
         scenes_fn=scenes_fn,
         encoder=encoder,
+        device=args.device,
     )
     md = (
         "## Table 1: missing objects"
@@ -207,6 +210,7 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         progress=not args.quiet,
         encoders=encoders,
         scenes_fn=scenes_fn,
+        device=args.device,
     )
     md = (
         "## Table 2: novel objects (ordered rows of cutlery)"
@@ -230,7 +234,9 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import heatmap
 
-    res = heatmap.run(seeds=args.seeds, quick=args.quick, progress=not args.quiet, out=out)
+    res = heatmap.run(
+        seeds=args.seeds, quick=args.quick, progress=not args.quiet, out=out, device=args.device
+    )
     md = heatmap.format_heatmap(res)
     return md, res.rows()
 
@@ -238,7 +244,13 @@ def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import compose
 
-    res = compose.run(seeds=args.seeds, methods=_methods(args), quick=args.quick, progress=not args.quiet)
+    res = compose.run(
+        seeds=args.seeds,
+        methods=_methods(args),
+        quick=args.quick,
+        progress=not args.quiet,
+        device=args.device,
+    )
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
     md = "## Fig. 4: composing with constraints (television, speakers, clutter)\n\n"
@@ -269,6 +281,7 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         config=cfg,
         jobs=args.jobs,
         energy_only=args.energy_only,
+        device=args.device,
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case, indent=1) + "\n")
@@ -305,7 +318,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         raise UserError(f"--test-scenes must be at least 1, got {test_scenes}")
     cfg = TrainConfig(iterations=iterations) if iterations else TrainConfig()
     log = (lambda s: None) if args.quiet else print
-    res = tidy.run(names, test_scenes=test_scenes, seed=args.seed, config=cfg, log=log)
+    res = tidy.run(names, test_scenes=test_scenes, seed=args.seed, config=cfg, log=log, device=args.device)
     out.mkdir(parents=True, exist_ok=True)
     tidy.plot_pareto(res, out / "pareto.png")
     md = "## Tidying messy scenes\n\n"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from . import add_common
+    from . import add_common, add_device
 
     p = sub.add_parser(
         "place",
@@ -29,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="place by the learned energy alone, overlaps allowed (the paper's protocol)",
     )
     add_common(p)
+    add_device(p)
     p.set_defaults(func=run)
 
 
@@ -40,9 +41,10 @@ def run(args: argparse.Namespace) -> int:
     from ..placement import PLACE, overlapping, place
     from ..plot import plot_scene
     from ..scene import Scene
-    from . import UserError
+    from . import UserError, device_of
 
-    model = load(args.model)
+    device = device_of(args)
+    model = load(args.model, device=device)
     scene = Scene.from_json(args.scene)
     names = scene.unknown
     if not names:

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from . import UserError, add_common
+from . import UserError, add_common, add_device, device_of
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,6 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scene-out", help="write the solved scene as JSON here")
     p.add_argument("--plot", help="draw the solved scene to this PNG")
     add_common(p, seed=-1, seed_help="random seed (default -1: the problem file's own seed)")
+    add_device(p)
     p.set_defaults(func=run_solve)
 
     c = sub.add_parser(
@@ -40,13 +41,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--seeds", type=int, default=5, help="number of seeds (default 5)")
     c.add_argument("--out", help="write the table here: FILE.md (markdown) and FILE.json (JSON) beside it")
     add_common(c)
+    add_device(c)
     c.set_defaults(func=run_compare)
 
 
-def _load(path: str):
+def _load(path: str, args: argparse.Namespace):
     from ..problem_file import load_problem
 
-    return load_problem(path)
+    return load_problem(path, device=device_of(args))
 
 
 def _warn_unused_options(path: str, options: dict, chains: list[str]) -> None:
@@ -66,7 +68,7 @@ def run_solve(args: argparse.Namespace) -> int:
     from ..scene import atomic_write_text
     from ..solvers import solve
 
-    lp = _load(args.problem)
+    lp = _load(args.problem, args)
     solver = args.solver or lp.solver
     seed = lp.seed if args.seed < 0 else args.seed
     _warn_unused_options(args.problem, lp.options, [solver])
@@ -111,7 +113,7 @@ def run_compare(args: argparse.Namespace) -> int:
     from ..scene import atomic_write_text
     from ..solvers.compare import compare
 
-    lp = _load(args.problem)
+    lp = _load(args.problem, args)
     solvers = _solver_list(args.solvers)
     if args.seeds < 1:
         raise UserError(f"--seeds: expected a number >= 1, got {args.seeds}")

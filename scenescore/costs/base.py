@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Annotated, Any, Protocol, cast
 
 import numpy as np
@@ -27,6 +27,7 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field
 from torch import Tensor
 
+from ..devices import resolve_device
 from ..geometry import Footprints
 from ..scene import MAX_LENGTH, Scene, SceneError
 
@@ -55,14 +56,21 @@ class CostError(ValueError):
 
 @dataclass
 class Binding:
-    """What a bound cost knows of its problem: the scene, which objects move, the footprints."""
+    """What a bound cost knows of its problem: the scene, which objects move, the footprints, and the
+    device its tensors live on (the poses it is evaluated at must be there too)."""
 
     scene: Scene
     movable: np.ndarray  # (N,) bool
     footprints: Footprints
+    device: torch.device = field(default_factory=lambda: torch.device("cpu"))
 
     @classmethod
-    def make(cls, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Binding:
+    def make(
+        cls,
+        scene: Scene,
+        movable: np.ndarray | list[str] | None = None,
+        device: str | torch.device | None = None,
+    ) -> Binding:
         n = len(scene)
         if movable is None:
             mask = np.array([not o.fixed for o in scene.objects])
@@ -74,7 +82,8 @@ class Binding:
                 mask[scene.index(name)] = True
         if mask.shape != (n,):
             raise CostError(f"movable: expected {n} flags, got shape {mask.shape}")
-        return cls(scene, mask, Footprints.from_scene(scene))
+        dev = resolve_device(device)
+        return cls(scene, mask, Footprints.from_scene(scene, device=dev), dev)
 
 
 @dataclass
@@ -132,10 +141,22 @@ class Cost:
         return {}
 
     # -- binding ------------------------------------------------------------------------------------
-    def bind(self, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Cost:
-        """A copy of this cost bound to ``scene`` (``movable``: names or an ``(N,)`` mask; default: not fixed)."""
+    def model_device(self) -> torch.device | None:
+        """The device of the model this term evaluates (a learned energy's), or None: it has none and
+        works wherever it is bound."""
+        return None
+
+    def bind(
+        self,
+        scene: Scene,
+        movable: np.ndarray | list[str] | None = None,
+        device: str | torch.device | None = None,
+    ) -> Cost:
+        """A copy of this cost bound to ``scene`` (``movable``: names or an ``(N,)`` mask; default: not fixed),
+        its tensors on ``device`` (default: :meth:`model_device`, else the CPU); :meth:`_on_bind` makes
+        them on ``self.binding.device``."""
         out = copy.copy(self)
-        out._binding = Binding.make(scene, movable)
+        out._binding = Binding.make(scene, movable, device or self.model_device())
         out._on_bind()
         return out
 
@@ -256,9 +277,9 @@ class ConstraintCost(Cost):
 
     def check(self, poses: np.ndarray, tol: float) -> list[Violation]:
         """Default exact check: every row below ``-tol`` at ``poses (N, 3)``, evaluated in float64."""
-        x = torch.as_tensor(np.asarray(poses, dtype=np.float64)).reshape(1, -1, 3)
+        x = torch.as_tensor(np.asarray(poses, dtype=np.float64), device=self.binding.device).reshape(1, -1, 3)
         with torch.no_grad():
-            g = self.constraints(self._check(x))[0]
+            g = self.constraints(self._check(x))[0].cpu()
         labels = self.labels()
         return [Violation(self.name, labels[k], float(-g[k])) for k in range(len(g)) if float(g[k]) < -tol]
 
@@ -330,9 +351,18 @@ class Sum(Cost):
                 return w
         raise CostError(f"no cost term named {name!r}; terms are {self.names}")
 
-    def bind(self, scene: Scene, movable: np.ndarray | list[str] | None = None) -> Sum:
-        binding = Binding.make(scene, movable)
-        out = Sum([(w, c.bind(scene, binding.movable)) for w, c in self.items])
+    def model_device(self) -> torch.device | None:
+        """The first term's model device (see :meth:`Cost.model_device`)."""
+        return next((d for d in (c.model_device() for _, c in self.items) if d is not None), None)
+
+    def bind(
+        self,
+        scene: Scene,
+        movable: np.ndarray | list[str] | None = None,
+        device: str | torch.device | None = None,
+    ) -> Sum:
+        binding = Binding.make(scene, movable, device or self.model_device())
+        out = Sum([(w, c.bind(scene, binding.movable, binding.device)) for w, c in self.items])
         out._binding = binding
         return out
 

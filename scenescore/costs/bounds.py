@@ -57,13 +57,13 @@ class Bounds(ConstraintCost):
         hi = b.scene.bounds[1] if self.hi is None else self.hi
         if not (lo[0] < hi[0] and lo[1] < hi[1]):
             raise CostError(f"Bounds {self.name!r}: expected lo < hi on both axes, got lo={lo}, hi={hi}")
-        self._lo = torch.tensor(lo, dtype=torch.float64)
-        self._hi = torch.tensor(hi, dtype=torch.float64)
+        self._lo = torch.tensor(lo, dtype=torch.float64, device=b.device)
+        self._hi = torch.tensor(hi, dtype=torch.float64, device=b.device)
         if self.objects is None:
             self._idx = [int(i) for i in np.flatnonzero(b.movable)]
         else:
             self._idx = check_scene_names(b.scene, list(self.objects), f"Bounds {self.name!r}: objects")
-        self._idx_t = torch.tensor(self._idx, dtype=torch.long)
+        self._idx_t = torch.tensor(self._idx, dtype=torch.long, device=b.device)
 
     def _extent(self, poses: Tensor) -> tuple[Tensor, Tensor]:
         if self.footprint:

@@ -72,8 +72,8 @@ class HingeCollision(ConstraintCost):
                     raise CostError(f"HingeCollision {self.name!r}: pairs: {p!r} pairs an object with itself")
                 pairs.append((i, j))
         self._pairs = pairs
-        self._pi = torch.tensor([p[0] for p in pairs], dtype=torch.long)
-        self._pj = torch.tensor([p[1] for p in pairs], dtype=torch.long)
+        self._pi = torch.tensor([p[0] for p in pairs], dtype=torch.long, device=b.device)
+        self._pj = torch.tensor([p[1] for p in pairs], dtype=torch.long, device=b.device)
 
     def signed_distance(self, poses: Tensor) -> Tensor:
         """Signed distance per pair ``(B, P)``; many pose sets (candidates being screened) go in chunks of
@@ -110,7 +110,7 @@ class HingeCollision(ConstraintCost):
             pb = poses[:, self._pj].clone().requires_grad_(True)
             g = signed_distance_placed(pa, pb, self.binding.footprints, self._pi, self._pj) - self.margin
             ga, gb = torch.autograd.grad(g.sum(), (pa, pb))
-        rows = torch.arange(p)
+        rows = torch.arange(p, device=poses.device)
         jac[:, rows, self._pi] = ga
         jac[:, rows, self._pj] = gb
         return g.detach(), jac
@@ -131,7 +131,7 @@ class HingeCollision(ConstraintCost):
             (ca_, ra), (cb, rb) = geo[i], geo[j]
             a, b = objs[i].name, objs[j].name
             if overlap_depth_exceeds((ca_, ra), (cb, rb), tol):
-                x = torch.as_tensor(np.asarray(poses, dtype=np.float64))[None]
+                x = torch.as_tensor(np.asarray(poses, dtype=np.float64), device=self.binding.device)[None]
                 d = float(self.signed_distance(x)[0, k])
                 out.append(Violation(self.name, f"{a} / {b}", -d, f"{a} overlaps {b} ({-d * 1000:.2f} mm)"))
             elif self.margin > tol:

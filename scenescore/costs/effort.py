@@ -103,11 +103,14 @@ class EffortTerm(Cost):
                 raise CostError(f"{label}: object {o.name!r} has no pose to measure its move from")
             ref.append(pose)
         self._idx = [int(i) for i in idx]
-        self._idx_t = torch.tensor(self._idx, dtype=torch.long)
-        self._ref = torch.tensor(ref, dtype=torch.float64).reshape(-1, 3)
-        self._rho = torch.tensor([tip_radius(scene.objects[i]) for i in self._idx], dtype=torch.float64)
+        dev = b.device
+        self._idx_t = torch.tensor(self._idx, dtype=torch.long, device=dev)
+        self._ref = torch.tensor(ref, dtype=torch.float64, device=dev).reshape(-1, 3)
+        self._rho = torch.tensor(
+            [tip_radius(scene.objects[i]) for i in self._idx], dtype=torch.float64, device=dev
+        )
         self._w = torch.tensor(
-            [self.weights.get(scene.objects[i].name, 1.0) for i in self._idx], dtype=torch.float64
+            [self.weights.get(scene.objects[i].name, 1.0) for i in self._idx], dtype=torch.float64, device=dev
         )
 
     @property
@@ -119,17 +122,17 @@ class EffortTerm(Cost):
     def reference_poses(self) -> np.ndarray:
         """The reference poses ``(M, 3)`` of :attr:`objects_index`."""
         self.binding  # noqa: B018
-        return self._ref.numpy().copy()
+        return self._ref.cpu().numpy().copy()
 
     def object_weights(self) -> np.ndarray:
         """Each counted object's weight ``(M,)``."""
         self.binding  # noqa: B018
-        return self._w.numpy().copy()
+        return self._w.cpu().numpy().copy()
 
     def tip_radii(self) -> np.ndarray:
         """Each counted object's ``rho`` ``(M,)`` (0 for round objects)."""
         self.binding  # noqa: B018
-        return self._rho.numpy().copy()
+        return self._rho.cpu().numpy().copy()
 
     def squared_moves(self, poses: Tensor) -> Tensor:
         """``d_i^2`` per counted object ``(B, M)``, metres squared."""
@@ -141,9 +144,9 @@ class EffortTerm(Cost):
 
     def moves(self, poses: np.ndarray) -> np.ndarray:
         """``d_i`` per counted object at one pose set ``(N, 3)``: ``(M,)`` metres."""
-        x = torch.as_tensor(np.asarray(poses, dtype=np.float64)).reshape(1, -1, 3)
+        x = torch.as_tensor(np.asarray(poses, dtype=np.float64), device=self.binding.device).reshape(1, -1, 3)
         with torch.no_grad():
-            return torch.sqrt(self.squared_moves(x)[0]).numpy()
+            return torch.sqrt(self.squared_moves(x)[0]).cpu().numpy()
 
     def penalty(self, d2: Tensor) -> Tensor:  # pragma: no cover - abstract
         """Each object's cost from its ``d_i^2`` (same shape)."""
@@ -231,9 +234,10 @@ class Anchor(Cost):
         self.name = name
 
     def _on_bind(self) -> None:
-        self._inner = self._inner.bind(self.binding.scene, self.binding.movable)  # type: ignore[assignment]
-        self._idx_t = torch.tensor(self._inner.objects_index, dtype=torch.long)
-        self._ref = torch.as_tensor(self._inner.reference_poses())
+        b = self.binding
+        self._inner = self._inner.bind(b.scene, b.movable, b.device)  # type: ignore[assignment]
+        self._idx_t = torch.tensor(self._inner.objects_index, dtype=torch.long, device=b.device)
+        self._ref = torch.as_tensor(self._inner.reference_poses(), device=b.device)
 
     @property
     def objects_index(self) -> list[int]:

@@ -52,13 +52,23 @@ class LearnedEnergy(Cost):
         n = len(self.binding.scene)
         return list(range(n)) if self._idx is None else [int(i) for i in self._idx]
 
+    def model_device(self) -> torch.device:
+        """The model's device: a problem with this term runs there unless told otherwise."""
+        return self.model.device
+
     def _on_bind(self) -> None:
         scene = self.binding.scene
+        if self.binding.device != self.model.device:
+            raise CostError(
+                f"LearnedEnergy {self.name!r}: the model is on {self.model.device}, the problem on "
+                f"{self.binding.device}; load the model there (models.load(path, device=...)) or move it "
+                "(model.to(device))"
+            )
         self._idx = None
         if self.objects is not None:
             idx = check_scene_names(scene, self.objects, f"LearnedEnergy {self.name!r}: objects")
             scene = type(scene)([scene.objects[i] for i in idx], scene.bounds, meta=scene.meta)
-            self._idx = torch.tensor(idx, dtype=torch.long)
+            self._idx = torch.tensor(idx, dtype=torch.long, device=self.binding.device)
         self.visible_scene = scene  # the scene the energy is conditioned on
         with torch.no_grad():
             self._fn = self.model.energy_fn(scene)
@@ -73,8 +83,9 @@ class LearnedEnergy(Cost):
         with torch.no_grad():
             st = model.tensors([t.binding.scene for t in es])
             nodes = model.net.node_embedding(st.feats, st.sizes)  # (G, N, D)
-        reps = torch.as_tensor(list(sizes))
-        st = st.repeat(1).index(torch.arange(len(es)).repeat_interleave(reps))  # one row per particle
+        reps = torch.as_tensor(list(sizes), device=model.device)
+        rows = torch.arange(len(es), device=model.device).repeat_interleave(reps)
+        st = st.repeat(1).index(rows)  # one row per particle
         nodes = nodes.repeat_interleave(reps, dim=0)
 
         def fn(poses: Tensor) -> Tensor:

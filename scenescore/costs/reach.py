@@ -53,10 +53,10 @@ class ReachLimit(ConstraintCost):
             self._idx = [int(i) for i in np.flatnonzero(b.movable)]
         else:
             self._idx = check_scene_names(b.scene, list(self.objects), f"ReachLimit {self.name!r}: objects")
-        self._idx_t = torch.tensor(self._idx, dtype=torch.long)
+        self._idx_t = torch.tensor(self._idx, dtype=torch.long, device=b.device)
 
     def constraints(self, poses: Tensor) -> Tensor:
-        d = poses[:, self._idx_t, :2] - torch.tensor(self.base, dtype=poses.dtype)
+        d = poses[:, self._idx_t, :2] - torch.tensor(self.base, dtype=poses.dtype, device=poses.device)
         return self.radius - torch.sqrt((d * d).sum(-1) + 1e-20)
 
     def labels(self) -> list[str]:
@@ -85,7 +85,7 @@ class ReachLimit(ConstraintCost):
         """Pull centres that are out of reach radially back onto the reach circle."""
         if not self._idx:
             return poses
-        base = torch.tensor(self.base, dtype=poses.dtype)
+        base = torch.tensor(self.base, dtype=poses.dtype, device=poses.device)
         p = poses[:, self._idx_t, :2]
         d = p - base
         r = torch.sqrt((d * d).sum(-1, keepdim=True) + 1e-20)

@@ -111,13 +111,14 @@ class SymbolicProblem:
     def torch_function(self, fn: Callable[[Tensor], Tensor], rows: int = 0) -> Any:
         """``fn(poses (1, N, 3)) -> (1,)`` (``rows == 0``) or ``(1, rows)`` as a CasADi expression of ``z``.
 
-        Values and derivatives come from torch; IPOPT then uses its limited-memory Hessian.
+        Values and derivatives come from torch (on the device of the problem's poses); IPOPT then uses its
+        limited-memory Hessian.
         """
         base, var = self.base, self.var_obj
 
         def of_z(zt: Tensor) -> Tensor:
             x = base.clone()
-            x[var] = zt.reshape(-1, 3)
+            x[var] = zt.reshape(-1, 3).to(x.device)
             return fn(x[None]).reshape(-1)
 
         cb = TorchCallback(f"torch_{len(self.callbacks)}", of_z, self.nz, max(rows, 1))
@@ -150,7 +151,7 @@ class TorchCallback(ca.Callback):
     def eval(self, arg: Any) -> list[Any]:
         z = torch.as_tensor(np.asarray(arg[0]).ravel(), dtype=torch.float64)
         with torch.no_grad():
-            return [self.fn(z).detach().numpy().reshape(self.m, 1)]
+            return [self.fn(z).detach().cpu().numpy().reshape(self.m, 1)]
 
     def has_jacobian(self) -> bool:
         return True
@@ -181,7 +182,7 @@ class _TorchJacobian(ca.Callback):
     def eval(self, arg: Any) -> list[Any]:
         z = torch.as_tensor(np.asarray(arg[0]).ravel(), dtype=torch.float64)
         jac = torch.autograd.functional.jacobian(lambda v: self.fn(v).reshape(-1), z)
-        return [jac.detach().numpy().reshape(self.m, self.n)]
+        return [jac.detach().cpu().numpy().reshape(self.m, self.n)]
 
 
 def objective_by_torch(term: Cost, weight: float, nlp: SymbolicProblem) -> None:

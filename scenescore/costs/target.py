@@ -51,7 +51,7 @@ class PoseTarget(Cost):
 
     def evaluate(self, poses: Tensor) -> Tensor:
         p = poses[:, self._i]
-        d = p[:, :2] - torch.tensor(self.xy, dtype=poses.dtype)
+        d = p[:, :2] - torch.tensor(self.xy, dtype=poses.dtype, device=poses.device)
         out = (d * d).sum(-1)
         if self.theta is None:  # no target heading: the heading is free
             return out

@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -92,13 +92,15 @@ class ComposeResult:
         return rows
 
 
-def train_energy(scenes: list[Scene], seed: int, quick: bool = False, progress: bool = False) -> ScoreModel:
-    """The experiment's energy, trained on ``scenes``: every counter-example chain moves every object,
-    as the sampler does here."""
+def train_energy(
+    scenes: list[Scene], seed: int, quick: bool = False, progress: bool = False, device: Any = None
+) -> ScoreModel:
+    """The experiment's energy, trained on ``scenes`` (on ``device``): every counter-example chain moves
+    every object, as the sampler does here."""
     from ..training import train
 
     tc = TrainConfig(iterations=100 if quick else 600, full_fraction=1.0, single_fraction=0.0)
-    return train(scenes, tc, seed=seed, progress=progress)
+    return train(scenes, tc, seed=seed, progress=progress, device=device)
 
 
 def tv_problem(scene: Scene, model: ScoreModel) -> Problem:
@@ -139,8 +141,10 @@ def run(
     scenes: int | None = None,
     refine: int | None = None,
     log: Callable[[str], None] = print,
+    device: Any = None,
 ) -> ComposeResult:
-    """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level."""
+    """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level;
+    SceneScore's model and problems on ``device`` (NeatNet on the CPU)."""
     import torch
 
     from ..baselines import NeatNet, NeatNetConfig
@@ -164,7 +168,7 @@ def run(
         model = None
         if ss_methods:
             t0 = time.perf_counter()
-            model = train_energy(train_s, seed, quick, progress)
+            model = train_energy(train_s, seed, quick, progress, device)
             dt = time.perf_counter() - t0
             for m in ss_methods:
                 res.seconds[m] = res.seconds.get(m, 0.0) + dt

@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -59,8 +60,10 @@ def run(
     resolution: float = 0.01,
     n_train: int | None = None,
     iterations: int | None = None,
+    device: Any = None,
 ) -> HeatmapResult:
-    """Train on desk scenes per seed, measure the minima; PNGs (seed 0) under ``out`` when given."""
+    """Train on desk scenes per seed (on ``device``), measure the minima; PNGs (seed 0) under ``out``
+    when given."""
     sc = DeskScenario()
     res = HeatmapResult()
     t0 = time.perf_counter()
@@ -69,7 +72,7 @@ def run(
         if n_train is not None:
             train_s = train_s[:n_train]
         tc = TrainConfig(iterations=iterations or (60 if quick else TrainConfig().iterations))
-        model = train(train_s, tc, seed=seed, progress=progress)
+        model = train(train_s, tc, seed=seed, progress=progress, device=device)
         figs: dict[str, float] = {}
         minima: dict[tuple[str, float], tuple[float, float]] = {}
         for tool in ("pen", "pencil"):

@@ -32,7 +32,7 @@ PAPER: dict[str, dict[str, float]] = {
 
 
 def _methods(
-    scenario: DiningScenario, quick: bool, encoder: Encoder | None
+    scenario: DiningScenario, quick: bool, encoder: Encoder | None, device: Any = None
 ) -> dict[str, Callable[[], Placer]]:
     from ..baselines import NearestNeighbour, NeatNet, NeatNetConfig
 
@@ -40,7 +40,7 @@ def _methods(
 
     def scenescore(name: str, **model: Any) -> SceneScorePlacer:
         cfg = TrainConfig(**{**tc.to_dict(), "model": {**tc.model, **model}})
-        return SceneScorePlacer(name, cfg, encoder=encoder)
+        return SceneScorePlacer(name, cfg, encoder=encoder, device=device)
 
     return {
         "NeatNet": lambda: NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)),
@@ -83,10 +83,12 @@ def run(
     scenes_fn: Callable[[list[Scene], list[Scene]], tuple[list[Scene], list[Scene]]] | None = None,
     log: Callable[[str], None] = print,
     encoder: Encoder | None = None,
+    device: Any = None,
 ) -> MissingResult:
-    """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs."""
+    """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs;
+    ``device``: where SceneScore's models train and place (the baselines stay on the CPU)."""
     scenario = DiningScenario()
-    table = _methods(scenario, quick, encoder)
+    table = _methods(scenario, quick, encoder, device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]
     if unknown:

@@ -56,7 +56,7 @@ def scenescore_row(encoder: Encoder) -> str:
 
 
 def _methods(
-    scenario: OrderingScenario, quick: bool, encoders: Sequence[Encoder] | None = None
+    scenario: OrderingScenario, quick: bool, encoders: Sequence[Encoder] | None = None, device: Any = None
 ) -> dict[str, Callable[[], Placer]]:
     tc = TrainConfig(iterations=60) if quick else TrainConfig()
 
@@ -66,12 +66,12 @@ def _methods(
         return NeatNetR(epochs=50 if quick else 1500)
 
     def scenescore(enc: Encoder) -> Callable[[], Placer]:
-        return lambda: SceneScorePlacer(scenescore_row(enc), tc, encoder=enc)
+        return lambda: SceneScorePlacer(scenescore_row(enc), tc, encoder=enc, device=device)
 
     scenescore_rows: dict[str, Callable[[], Placer]] = (
         {scenescore_row(e): scenescore(e) for e in encoders}
         if encoders
-        else {"SceneScore": lambda: SceneScorePlacer("SceneScore", tc)}
+        else {"SceneScore": lambda: SceneScorePlacer("SceneScore", tc, device=device)}
     )
     return {"NeatNet-R": neatnet_r, **scenescore_rows, "Oracle": lambda: OraclePlacer(scenario)}
 
@@ -169,6 +169,7 @@ def run(
     n_test: int | None = None,
     encoders: Sequence[Encoder] | None = None,
     scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None = None,
+    device: Any = None,
     **scenario: Any,
 ) -> NovelResult:
     """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests.
@@ -176,6 +177,7 @@ def run(
     ``encoders``: SceneScore gives one row per encoder (the method ``"SceneScore"`` stands for them all).
     ``scenes_fn(train, test, encoder)``: the graphs the methods see instead of the ground truth, built
     with ``encoder`` (SceneScore's rows each with their own; the other methods with the first's).
+    ``device``: where SceneScore's models train and place (the baselines stay on the CPU).
     """
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
@@ -186,7 +188,7 @@ def run(
         figs: dict[str, dict[str, float]] = {m: {} for m in chosen}
         for rule in rules:
             sc = OrderingScenario(rule=rule, **scenario)
-            table = _methods(sc, quick, encoders)
+            table = _methods(sc, quick, encoders, device)
             unknown = [m for m in chosen if m not in table]
             if unknown:
                 raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")

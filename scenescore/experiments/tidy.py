@@ -286,9 +286,10 @@ def run(
     progress: bool = False,
     options: TidyOptions | None = None,
     place_options: LangevinOptions | None = None,
+    device: Any = None,
 ) -> TidyRun:
-    """Train per scenario, make the messy cases, run every method on them (``options``: tidy's,
-    ``place_options``: the baselines' placement; defaults: the library's)."""
+    """Train per scenario (on ``device``), make the messy cases, run every method on them (``options``:
+    tidy's, ``place_options``: the baselines' placement; defaults: the library's)."""
     res = TidyRun(efforts=tuple(efforts))
     methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
     for m in methods:
@@ -298,7 +299,7 @@ def run(
         sc = get(name)
         t0 = time.perf_counter()
         train_s, test_s = sc.split(seed)
-        model = train(train_s, config or TrainConfig(), seed=seed, progress=progress)
+        model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device)
         held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
         gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
         cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)

@@ -107,13 +107,14 @@ def run_one(
     config: TrainConfig | None = None,
     progress: bool = False,
     energy_only: bool = False,
+    device: Any = None,
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
-    the learned energy alone, the paper's protocol); ``{"cases", "worst", "seconds"}``."""
+    the learned energy alone, the paper's protocol), on ``device``; ``{"cases", "worst", "seconds"}``."""
     t0 = time.perf_counter()
     sc = get(name)
     train_s, test_s = sc.split(seed)
-    model = train(train_s, config or TrainConfig(), seed=seed, progress=progress)
+    model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device)
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
     placed: list[Scene] = []
@@ -155,13 +156,13 @@ def run_one(
     return {"cases": records, "worst": worst, "seconds": time.perf_counter() - t0}
 
 
-def _worker(task: tuple[str, int, TrainConfig | None, bool]) -> tuple[str, int, dict[str, Any]]:
+def _worker(task: tuple[str, int, TrainConfig | None, bool, Any]) -> tuple[str, int, dict[str, Any]]:
     """``run_one`` in a worker process, on one thread (the pool's processes share the cores)."""
     import torch
 
     torch.set_num_threads(1)
-    name, seed, config, energy_only = task
-    return name, seed, run_one(name, seed, config, energy_only=energy_only)
+    name, seed, config, energy_only, device = task
+    return name, seed, run_one(name, seed, config, energy_only=energy_only, device=device)
 
 
 def run(
@@ -172,8 +173,10 @@ def run(
     config: TrainConfig | None = None,
     jobs: int = 1,
     energy_only: bool = False,
+    device: Any = None,
 ) -> ZooResult:
-    """The zoo table over ``seeds`` seeds (``config``: the training settings; default the CLI's).
+    """The zoo table over ``seeds`` seeds (``config``: the training settings; default the CLI's;
+    ``device``: where the models train and place).
 
     ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
     largest scenarios first; each pair's figures do not depend on ``jobs``.
@@ -198,7 +201,7 @@ def run(
 
     if jobs == 1:
         for name, seed in tasks:
-            report(name, seed, run_one(name, seed, config, progress, energy_only))
+            report(name, seed, run_one(name, seed, config, progress, energy_only, device))
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -206,7 +209,9 @@ def run(
         # the largest graphs first, so the long pairs do not start last
         order = sorted(tasks, key=lambda t: -get(t[0]).counts[1])
         with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as pool:
-            futures = [pool.submit(_worker, (name, seed, config, energy_only)) for name, seed in order]
+            futures = [
+                pool.submit(_worker, (name, seed, config, energy_only, device)) for name, seed in order
+            ]
             for f in as_completed(futures):
                 report(*f.result())
     res = ZooResult()

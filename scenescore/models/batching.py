@@ -35,7 +35,7 @@ class SceneTensors:
 
     def index(self, idx: Tensor | Sequence[int]) -> SceneTensors:
         """Rows ``idx`` (an index tensor or list)."""
-        idx = torch.as_tensor(idx, dtype=torch.long)
+        idx = torch.as_tensor(idx, dtype=torch.long, device=self.poses.device)
         return SceneTensors(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
     def repeat(self, k: int) -> SceneTensors:
@@ -43,6 +43,12 @@ class SceneTensors:
         return SceneTensors(
             *(getattr(self, f).repeat_interleave(k, dim=0) for f in self.__dataclass_fields__)
         )
+
+    def to(self, device: torch.device | str) -> SceneTensors:
+        """The same tensors on ``device`` (itself when they are there already)."""
+        if self.poses.device == torch.device(device):
+            return self
+        return SceneTensors(*(getattr(self, f).to(device) for f in self.__dataclass_fields__))
 
 
 WALL_COLOR = (200, 200, 200)
@@ -69,10 +75,15 @@ def wall_objects(bounds: Bounds) -> list[SceneObject]:
 
 
 def batch_scenes(
-    scenes: Sequence[Scene], encoder: Encoder, dtype: torch.dtype = torch.float32, walls: bool = False
+    scenes: Sequence[Scene],
+    encoder: Encoder,
+    dtype: torch.dtype = torch.float32,
+    walls: bool = False,
+    device: torch.device | str | None = None,
 ) -> SceneTensors:
     """Encode and pad scenes of possibly different sizes into one batch; ``walls`` appends the bounds'
-    four sides to every scene as fixed objects (after its own objects, which keep their indices)."""
+    four sides to every scene as fixed objects (after its own objects, which keep their indices).
+    The batch is filled on the CPU and moved to ``device`` (default the CPU) in one copy per tensor."""
     if not scenes:
         raise SceneError("batch_scenes: no scenes given")
     if walls:
@@ -100,4 +111,4 @@ def batch_scenes(
         out.round[k, :m] = torch.tensor([o.round for o in s.objects])
         out.lo[k] = torch.tensor(s.bounds[0], dtype=dtype)
         out.hi[k] = torch.tensor(s.bounds[1], dtype=dtype)
-    return out
+    return out if device is None else out.to(device)

@@ -25,9 +25,9 @@ def energy_mx(model, scene, poses):
     cfg = net.cfg
     st = model.tensors([scene])
     with torch.no_grad():
-        nodes = net.node_embedding(st.feats, st.sizes)[0].double().numpy().T  # (D, N)
-    sd = {k: v.detach().double().numpy() for k, v in net.state_dict().items()}
-    walls = st.poses[0, len(scene) :].double().numpy()  # the objects the model adds (walls): constants
+        nodes = net.node_embedding(st.feats, st.sizes)[0].double().cpu().numpy().T  # (D, N)
+    sd = {k: v.detach().double().cpu().numpy() for k, v in net.state_dict().items()}
+    walls = st.poses[0, len(scene) :].double().cpu().numpy()  # the objects the model adds (walls): constants
     rnd = st.round[0].tolist() if cfg.round_invariant else [False] * st.poses.shape[1]
     if len(walls):
         poses = ca.vertcat(poses, ca.DM(walls))

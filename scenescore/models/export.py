@@ -141,9 +141,9 @@ def scene_inputs(model: ScoreModel, scene: Scene) -> OnnxScene:
     with torch.no_grad():
         nodes = model.net.node_embedding(st.feats, st.sizes)[0]
     return OnnxScene(
-        nodes=nodes.to(torch.float32).numpy(),
-        round=st.round[0].numpy(),
-        extra_poses=st.poses[0, len(scene) :].to(torch.float32).numpy(),
+        nodes=nodes.to(torch.float32).cpu().numpy(),
+        round=st.round[0].cpu().numpy(),
+        extra_poses=st.poses[0, len(scene) :].to(torch.float32).cpu().numpy(),
         inputs=energy_inputs(model),
     )
 
@@ -239,7 +239,7 @@ def _write(proto: Any, path: str | os.PathLike, meta: dict[str, str]) -> Path:
 
 
 def _float_net(model: ScoreModel) -> EnergyNet:
-    return copy.deepcopy(model.net).to(torch.float32).eval()
+    return copy.deepcopy(model.net).to("cpu", torch.float32).eval()  # exported from the CPU
 
 
 def export_onnx(

@@ -10,6 +10,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
+from ..devices import resolve_device
 from ..encoders import Encoder, make_encoder
 from ..memory import check as check_memory
 from ..scene import Scene
@@ -22,7 +23,10 @@ __all__ = ["ScoreModel", "load", "with_walls"]
 
 
 class ScoreModel(nn.Module):
-    """The energy network and its encoder: ``E(poses | scene)``, low for arrangements like the examples."""
+    """The energy network and its encoder: ``E(poses | scene)``, low for arrangements like the examples.
+
+    The model's device (``model.to(device)``, or ``load(path, device=...)``) is where its scenes are
+    encoded to and where the problems built on it run (see :mod:`scenescore.devices`)."""
 
     def __init__(self, net: EnergyNet, encoder: Encoder, info: dict[str, Any] | None = None):
         super().__init__()
@@ -46,12 +50,19 @@ class ScoreModel(nn.Module):
         return self.net.cfg
 
     def tensors(self, scenes: Sequence[Scene]) -> SceneTensors:
-        """Encode scenes with this model's encoder."""
-        return batch_scenes(scenes, self.encoder, dtype=self.dtype, walls=self.config.walls)
+        """Encode scenes with this model's encoder, on the model's device."""
+        return batch_scenes(
+            scenes, self.encoder, dtype=self.dtype, walls=self.config.walls, device=self.device
+        )
 
     @property
     def dtype(self) -> torch.dtype:
         return next(self.net.parameters()).dtype
+
+    @property
+    def device(self) -> torch.device:
+        """Where the weights are (``cpu`` unless moved)."""
+        return next(self.net.parameters()).device
 
     def energy(self, poses: Tensor, st: SceneTensors) -> Tensor:
         """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``."""
@@ -102,10 +113,15 @@ def with_walls(poses: Tensor, st: SceneTensors) -> Tensor:
     return torch.cat([poses, extra.expand(poses.shape[0], -1, -1)], dim=1)
 
 
-def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:
-    """Load a checkpoint written by :meth:`ScoreModel.save` (no pickle); ``encoder`` overrides the stored one."""
+def load(
+    path: str | os.PathLike, encoder: Encoder | None = None, device: str | torch.device | None = None
+) -> ScoreModel:
+    """Load a checkpoint written by :meth:`ScoreModel.save` (no pickle); ``encoder`` overrides the stored
+    one. ``device`` (default the CPU): where the weights go and the model runs; ``"cuda"``
+    without CUDA on this machine is a :class:`~scenescore.errors.ConfigError`."""
     path = Path(path)
-    ck = read_checkpoint(path)
+    dev = resolve_device(device)
+    ck = read_checkpoint(path)  # on the CPU, checked there, then moved (a map_location)
     try:
         cfg = EnergyConfig(**ck.energy_config)
     except (TypeError, ValueError) as e:
@@ -148,7 +164,7 @@ def load(path: str | os.PathLike, encoder: Encoder | None = None) -> ScoreModel:
         net.load_state_dict(ck.tensors)
     except RuntimeError as e:
         raise CheckpointError(f"{path}: weights do not match the stored config: {e}") from None
-    net.eval()
+    net.to(dev).eval()
     if "trust" in ck.info:
         try:
             TrustReference.from_dict(ck.info["trust"])

@@ -191,7 +191,7 @@ def reference(
             if touching_bound(o, pose, s.bounds, BOUND_TOL * length):
                 touching.add(o.category)
     with torch.no_grad():
-        feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().numpy()
+        feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().cpu().numpy()
     uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
     radius = max(1.0, 1.5 * feature_noise * math.sqrt(feats.shape[1]))
     return TrustReference(
@@ -242,7 +242,7 @@ def assess(
         if side and o.category not in ref.touches_bounds:
             flags.append(f"bound: pinned at the bound {side}, which no {o.category} in the data touches")
         if known.size:
-            dist = float(np.linalg.norm(known - feats[i].double().numpy(), axis=1).min())
+            dist = float(np.linalg.norm(known - feats[i].double().cpu().numpy(), axis=1).min())
             if dist > ref.feature_radius:
                 flags.append(
                     f"novel: its features are {dist:.2f} from any object seen in training (limit {ref.feature_radius:.2f})"

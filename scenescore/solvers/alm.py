@@ -101,15 +101,16 @@ class _Lagrangian:
         self.objective = problem.cost.objective_items
         self.rows_of: list[ConstraintCost] = problem.cost.constraint_terms
         weights = {c.name: w for w, c in problem.cost}
+        f64, dev = torch.float64, problem.device
         self.weight = torch.cat(  # (R,): each row's penalty weight in the problem's cost
-            [torch.full((len(c.labels()),), weights[c.name], dtype=torch.float64) for c in self.rows_of]
-            or [torch.zeros(0, dtype=torch.float64)]
+            [torch.full((len(c.labels()),), weights[c.name], dtype=f64, device=dev) for c in self.rows_of]
+            or [torch.zeros(0, dtype=f64, device=dev)]
         )
         self.power = torch.cat(  # (R,)
-            [torch.full((len(c.labels()),), float(c.power), dtype=torch.float64) for c in self.rows_of]
-            or [torch.zeros(0, dtype=torch.float64)]
+            [torch.full((len(c.labels()),), float(c.power), dtype=f64, device=dev) for c in self.rows_of]
+            or [torch.zeros(0, dtype=f64, device=dev)]
         )
-        self.movable = torch.as_tensor(problem.movable_mask)  # (N,)
+        self.movable = torch.as_tensor(problem.movable_mask, device=problem.device)  # (N,)
 
     def rows(self, x: Tensor) -> Tensor:
         """``g (B, R)``: every constraint row, feasible where ``>= 0`` (metres)."""
@@ -263,13 +264,25 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
     last_ok, last_ok_viol = x.clone(), viol.clone()  # each particle's last feasible iterate
     status = np.full(b, ParticleStatus.INFEASIBLE, dtype=object)
     failed = ~torch.isfinite(value)
-    status[failed.numpy()] = ParticleStatus.FAILED
-    ones = torch.ones(b, dtype=x.dtype)
+    status[failed.cpu().numpy()] = ParticleStatus.FAILED
+    ones = torch.ones(b, dtype=x.dtype, device=x.device)
     mem = x.new_zeros(b, o.memory, x[0].numel())
-    s = _State(torch.arange(b), x, lam, rho, ones, value, grad, g, torch.relu(o.slack - g), mem, mem.clone())
+    s = _State(
+        torch.arange(b, device=x.device),
+        x,
+        lam,
+        rho,
+        ones,
+        value,
+        grad,
+        g,
+        torch.relu(o.slack - g),
+        mem,
+        mem.clone(),
+    )
     done = failed
     if not o.polish:  # a repair: particles feasible from the start are done
-        status[(~failed & (viol <= o.tolerance)).numpy()] = ParticleStatus.CONVERGED
+        status[(~failed & (viol <= o.tolerance)).cpu().numpy()] = ParticleStatus.CONVERGED
         done = failed | (viol <= o.tolerance)
     s = s.keep(~done)
     it = 0
@@ -288,7 +301,7 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
         viol[s.idx] = v
         ok = s.idx[v <= o.tolerance]
         last_ok[ok], last_ok_viol[ok] = out[ok], viol[ok]
-        status[s.idx[done].numpy()] = ParticleStatus.CONVERGED
+        status[s.idx[done].cpu().numpy()] = ParticleStatus.CONVERGED
         s = s.keep(~done)
         if not len(s.idx) or it == o.iterations:
             break
@@ -307,8 +320,8 @@ def refine(problem: Problem, x0: Tensor, o: ALMOptions) -> tuple[Tensor, Tensor,
     # in for a particle that ends violated
     back = s.idx[(viol[s.idx] > o.tolerance) & (last_ok_viol[s.idx] <= o.tolerance)]
     out[back], viol[back] = last_ok[back], last_ok_viol[back]
-    active = s.idx.numpy()
-    feasible = (viol[s.idx] <= o.tolerance).numpy()
+    active = s.idx.cpu().numpy()
+    feasible = (viol[s.idx] <= o.tolerance).cpu().numpy()
     status[active[feasible]] = ParticleStatus.MAX_ITERATIONS
     status[active[~feasible]] = ParticleStatus.INFEASIBLE
     return out, viol, [str(v) for v in status], it

@@ -8,6 +8,7 @@ from typing import Any, ClassVar, Protocol
 import torch
 from torch import Tensor
 
+from ..devices import generator
 from ..problem import Problem
 from ..threads import POOL_ROWS, threads_for, torch_threads
 from .result import Result
@@ -56,8 +57,7 @@ def start_poses(problem: Problem, init: Tensor | None, seed: int) -> Tensor:
     """A refinement's start ``(1, N, 3)``: ``init`` (its lowest-cost row when a batch) or the scene's
     poses with the unknown ones drawn uniformly (``seed``)."""
     if init is None:
-        gen = torch.Generator().manual_seed(int(seed))
-        return problem.initial(1, gen, keep_known=True)
+        return problem.initial(1, generator(seed, problem.device), keep_known=True)
     x = problem.full(init)
     if x.shape[0] > 1:
         with torch.no_grad():

@@ -101,7 +101,7 @@ class CasadiSolver(StageSolver):
         built = self._built.get(problem)
         if built is None:
             built = self._built[problem] = _Built(problem, self.options)
-        x0 = start_poses(problem, init, seed)[0].numpy()
+        x0 = start_poses(problem, init, seed)[0].cpu().numpy()
         t1 = time.perf_counter()
         sol = built.solver(x0=built.start(x0), p=x0.reshape(-1, order="F"), lbg=built.lbg, ubg=built.ubg)
         t2 = time.perf_counter()

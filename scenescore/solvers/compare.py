@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import torch
 
+from ..devices import generator
 from ..problem import Problem
 from .base import Solver
 from .registry import get
@@ -95,7 +95,7 @@ def compare(
 
         bar = tqdm(total=len(seed_list) * len(solvers), desc="compare", unit="solve")
     for seed in seed_list:
-        init = problem.initial(n_part, torch.Generator().manual_seed(seed))  # shared by every solver
+        init = problem.initial(n_part, generator(seed, problem.device))  # shared by every solver
         for s in solvers:
             solver = built[s]
             if isinstance(solver, str):

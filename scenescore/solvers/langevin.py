@@ -24,6 +24,7 @@ import torch
 from torch import Tensor
 
 from ..costs.base import stack_sums
+from ..devices import generator
 from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
 from ..problem import FEASIBILITY_TOL, Problem, ProblemError
@@ -149,7 +150,7 @@ class LangevinSolver(StageSolver):
             raise ProblemError("langevin: problems solved together must have the same number of objects")
         rows = None if init is None else max(len(x) for x in init) if isinstance(init, list) else len(init)
         self.check_memory(problems, rows)
-        gen = torch.Generator().manual_seed(int(seed))
+        gen = generator(seed, problems[0].device)
         starts = []
         for k, p in enumerate(problems):
             if isinstance(init, list):
@@ -163,7 +164,7 @@ class LangevinSolver(StageSolver):
         sizes = [len(x) for x in starts]
         ends = np.cumsum(sizes).tolist()
         spans = list(zip([0, *ends[:-1]], ends))
-        masks = [torch.as_tensor(p.movable_mask) for p in problems]
+        masks = [torch.as_tensor(p.movable_mask, device=p.device) for p in problems]
         movable = torch.cat([m[None].expand(k, n) for m, k in zip(masks, sizes)])  # (B, N)
         lo = torch.cat([p.lo[None].expand(k, 2) for p, k in zip(problems, sizes)])  # (B, 2)
         hi = torch.cat([p.hi[None].expand(k, 2) for p, k in zip(problems, sizes)])

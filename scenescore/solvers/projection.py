@@ -89,6 +89,7 @@ class LinearisedProjection:
         assert self._solver is not None
         out = x.clone()
         bad = (g < 0).any(dim=1)
+        g, jac = g.cpu(), jac.cpu()  # OSQP works on the CPU
         for b in torch.nonzero(bad).flatten().tolist():
             j = jac[b][:, self.var_obj].reshape(len(support), self.n).numpy()  # (M, n)
             vals = j[self._pattern][self._order]
@@ -97,7 +98,7 @@ class LinearisedProjection:
             self.qp_solves += 1
             if res.info.status not in ("solved", "solved inaccurate"):
                 continue  # leave the particle as it is; the cost's penalty still acts on it
-            d = torch.as_tensor(res.x, dtype=x.dtype).reshape(-1, 3)
+            d = torch.as_tensor(res.x, dtype=x.dtype, device=x.device).reshape(-1, 3)
             out[b, self.var_obj] = x[b, self.var_obj] + d
         return out
 
@@ -110,11 +111,13 @@ def project_cvxpy(problem: Problem, x: Tensor, slack: float = 1e-4) -> Tensor:
     g, jac, support = _rows(problem, terms, x.reshape(1, problem.n, 3))
     var_obj = np.flatnonzero(problem.movable_mask)
     n = 3 * len(var_obj)
-    j = jac[0][:, var_obj].reshape(len(support), n).numpy()
+    j = jac[0][:, var_obj].reshape(len(support), n).cpu().numpy()
     d = cp.Variable(n)
     w = np.tile([1.0, 1.0, ANGLE_WEIGHT], len(var_obj))
-    prob = cp.Problem(cp.Minimize(cp.sum(cp.multiply(w, cp.square(d)))), [j @ d >= slack - g[0].numpy()])
+    prob = cp.Problem(
+        cp.Minimize(cp.sum(cp.multiply(w, cp.square(d)))), [j @ d >= slack - g[0].cpu().numpy()]
+    )
     prob.solve(solver=cp.OSQP, eps_abs=1e-7, eps_rel=1e-7)
     out = x.reshape(problem.n, 3).clone()
-    out[var_obj] += torch.as_tensor(d.value, dtype=x.dtype).reshape(-1, 3)
+    out[var_obj] += torch.as_tensor(d.value, dtype=x.dtype, device=x.device).reshape(-1, 3)
     return out

@@ -154,6 +154,13 @@ def _num(v: float | None) -> float | None:
     return v if math.isfinite(v) else None
 
 
+def _numpy(a: np.ndarray | torch.Tensor) -> np.ndarray:
+    """``a`` as a float64 numpy array (a tensor copied to the CPU first)."""
+    if isinstance(a, torch.Tensor):
+        a = a.detach().cpu()
+    return np.asarray(a, dtype=float)
+
+
 def make_result(
     problem: Problem,
     solver: str,
@@ -190,7 +197,7 @@ def make_result(
         if w is not None and w[1] > max_v:
             max_v, violated = w[1], f"{c.name}: {w[0]}"
     feas = problem.check(x[0], tol)
-    pose_np = np.asarray(x[0].detach(), dtype=float)
+    pose_np = _numpy(x[0])
     confidence = {k: v for _, c in problem.cost for k, v in c.assess(pose_np).items()}
     success = status.ok and max_v <= tol and math.isfinite(objective)
     if status == Status.CONVERGED and max_v > tol:
@@ -205,7 +212,7 @@ def make_result(
         message = (message + "; " if message else "") + "exact check: " + feas.describe()
     return Result(
         solver=solver,
-        poses=np.asarray(x[0].detach(), dtype=float),
+        poses=_numpy(x[0]),
         status=status,
         success=success,
         feasible=feas.feasible,
@@ -217,10 +224,10 @@ def make_result(
         time_setup=time_setup,
         time_solve=time_solve,
         message=message,
-        samples=None if samples is None else np.asarray(samples, dtype=float),
-        sample_costs=None if sample_costs is None else np.asarray(sample_costs, dtype=float),
+        samples=None if samples is None else _numpy(samples),
+        sample_costs=None if sample_costs is None else _numpy(sample_costs),
         sample_status=None if sample_status is None else np.asarray(sample_status, dtype=str),
-        sample_violations=None if sample_violations is None else np.asarray(sample_violations, dtype=float),
+        sample_violations=None if sample_violations is None else _numpy(sample_violations),
         problem=problem,
         threads=threads,
         confidence=confidence,

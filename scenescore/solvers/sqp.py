@@ -78,7 +78,7 @@ class _Model:
 
     def poses(self, z: np.ndarray, base: Tensor) -> Tensor:
         x = base.clone()
-        x[self.var_obj] = torch.as_tensor(z, dtype=torch.float64).reshape(-1, 3)
+        x[self.var_obj] = torch.as_tensor(z, dtype=torch.float64, device=base.device).reshape(-1, 3)
         return x[None]
 
     def objective(self, x: Tensor, grad: bool = True) -> tuple[float, np.ndarray | None]:
@@ -92,21 +92,21 @@ class _Model:
             if not grad:
                 return float(f.detach()), None
             (g,) = torch.autograd.grad(f.sum(), x) if f.requires_grad else (torch.zeros_like(x),)
-        return float(f.detach()), g[0, self.var_obj].reshape(-1).numpy()
+        return float(f.detach()), g[0, self.var_obj].reshape(-1).cpu().numpy()
 
     def constraints(self, x: Tensor, jac: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         if not self.con_terms:
             return np.zeros(0), np.zeros((0, self.n))
         if not jac:
             with torch.no_grad():
-                return torch.cat([c.constraints(x) for c in self.con_terms], 1)[0].numpy(), None
+                return torch.cat([c.constraints(x) for c in self.con_terms], 1)[0].cpu().numpy(), None
         gs, js = [], []
         for c in self.con_terms:
             g, j = c.jacobian(x)
             gs.append(g[0])
             js.append(j[0])
         j = torch.cat(js, 0)[:, self.var_obj].reshape(self.m, self.n)
-        return torch.cat(gs).numpy(), j.numpy()
+        return torch.cat(gs).cpu().numpy(), j.cpu().numpy()
 
 
 class OSQPSolver(StageSolver):
@@ -122,7 +122,7 @@ class OSQPSolver(StageSolver):
         n, m = mdl.n, mdl.m
         x0 = start_poses(problem, init, seed)
         base = x0[0].clone()
-        z = x0[0, mdl.var_obj].reshape(-1).numpy().copy()
+        z = x0[0, mdl.var_obj].reshape(-1).cpu().numpy().copy()
         scale = np.tile(
             [1.0, 1.0, 1.0 / np.sqrt(ANGLE_WEIGHT)], len(mdl.var_obj)
         )  # trust region per coordinate
