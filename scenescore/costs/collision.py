@@ -108,7 +108,7 @@ class HingeCollision(ConstraintCost):
         d = xy[:, self._pi] - xy[:, self._pj]  # (B, P, 2)
         scale = float(xy.abs().amax()) if xy.numel() else 0.0
         eps = torch.finfo(poses.dtype).eps
-        reach = self._reach.to(poses.dtype) + 64 * eps * (scale + float(self._reach.max()))
+        reach = self._reach.to(poses.device, poses.dtype) + 64 * eps * (scale + float(self._reach.max()))
         return d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1], reach
 
     def _near(self, poses: Tensor) -> Tensor:
@@ -121,11 +121,12 @@ class HingeCollision(ConstraintCost):
         """Rows ``g`` of the pairs ``flat`` (indices into the flattened ``(B, P)``) -> ``(M,)``, in chunks."""
         p = len(self._pairs)
         rows = chunk_rows(PAIR_BYTES, f"collision {self.name!r}: one pair", "the number of objects or pairs")
+        pi_all, pj_all = self._pi.to(flat.device), self._pj.to(flat.device)
         parts = []
         for a in range(0, len(flat), rows):
             f = flat[a : a + rows]
             bi, k = f // p, f % p
-            pi, pj = self._pi[k], self._pj[k]
+            pi, pj = pi_all[k], pj_all[k]
             parts.append(self._kernel(poses[bi, pi][None], poses[bi, pj][None], pi, pj)[0] - self.margin)
         if len(parts) > 1:
             return_freed_memory()
