@@ -24,7 +24,14 @@ from torch import Tensor
 
 from .scene import Scene, SceneObject
 
-__all__ = ["Footprints", "footprint_core", "signed_distance", "signed_distance_placed", "support_extent"]
+__all__ = [
+    "Footprints",
+    "footprint_core",
+    "signed_distance",
+    "signed_distance_placed",
+    "signed_distance_reference",
+    "support_extent",
+]
 
 _BIG = 1e9
 
@@ -90,6 +97,79 @@ class Footprints:
         y = s * v[None, ..., 0] + c * v[None, ..., 1] + poses[..., 1:2]
         return torch.stack([x, y], dim=-1)
 
+    def world_xy(self, poses: Tensor, idx: Tensor | None = None) -> tuple[Tensor, Tensor]:
+        """As :meth:`world`, the coordinates apart: ``x, y (B, N, K)``."""
+        v = (self.verts if idx is None else self.verts[idx]).to(poses.dtype)
+        c, s = torch.cos(poses[..., 2])[..., None], torch.sin(poses[..., 2])[..., None]  # (B, N, 1)
+        x = c * v[None, ..., 0] - s * v[None, ..., 1] + poses[..., 0:1]
+        y = s * v[None, ..., 0] + c * v[None, ..., 1] + poses[..., 1:2]
+        return x, y
+
+
+def _edges_xy(x: Tensor, y: Tensor, valid: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """Edge vectors ``v_k -> v_{k+1}`` and unit outward normals of cores given by their coordinates
+    ``x, y (B, P, K)``: ``ex, ey, nx, ny``; invalid edges have normal 0."""
+    ex, ey = torch.roll(x, -1, dims=-1) - x, torch.roll(y, -1, dims=-1) - y
+    norm = torch.sqrt(torch.where(valid[None], ey * ey + ex * ex, torch.ones_like(ex)))
+    zero = torch.zeros_like(ex)
+    return ex, ey, torch.where(valid[None], ey / norm, zero), torch.where(valid[None], -ex / norm, zero)
+
+
+def _vertex_segment_d2_xy(px: Tensor, py: Tensor, qx: Tensor, qy: Tensor, ex: Tensor, ey: Tensor) -> Tensor:
+    """Smallest squared distance from the vertices ``px, py (B, P, K)`` to the edges of the core ``qx, qy``
+    (edge vectors ``ex, ey``) -> ``(B, P)``."""
+    sx, sy, ex, ey = qx[..., None, :], qy[..., None, :], ex[..., None, :], ey[..., None, :]
+    dx, dy = px[..., :, None] - sx, py[..., :, None] - sy  # (B, P, K, K)
+    ee = ex * ex + ey * ey
+    t = ((dx * ex + dy * ey) / torch.where(ee > 0, ee, torch.ones_like(ee))).clamp(0.0, 1.0)
+    rx, ry = dx - t * ex, dy - t * ey
+    return (rx * rx + ry * ry).flatten(-2).min(-1).values
+
+
+def _project(nx: Tensor, ny: Tensor, x: Tensor, y: Tensor) -> Tensor:
+    """Projections of the vertices ``x, y (B, P, K)`` on the axes ``nx, ny (B, P, A)`` -> ``(B, P, A, K)``."""
+    return nx[..., :, None] * x[..., None, :] + ny[..., :, None] * y[..., None, :]
+
+
+def signed_distance(poses: Tensor, fp: Footprints, pi: Tensor, pj: Tensor) -> Tensor:
+    """Signed distance of footprint pairs ``(pi[p], pj[p])`` at ``poses (B, N, 3)`` -> ``(B, P)``, metres.
+
+    Positive: the gap between them; negative: minus the penetration depth.
+    """
+    return signed_distance_placed(poses[:, pi], poses[:, pj], fp, pi, pj)
+
+
+def signed_distance_placed(pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: Tensor, pj: Tensor) -> Tensor:
+    """As :func:`signed_distance`, with each pair's two poses given: ``pose_a, pose_b (B, P, 3)`` -> ``(B, P)``.
+
+    Each row depends only on its own two poses, so one backward pass gives every row's Jacobian. The
+    same arithmetic, operation for operation, as :func:`signed_distance_reference` (so the same bits),
+    with the x and y coordinates kept apart: no products reduced over a dimension of two.
+    """
+    ax, ay = fp.world_xy(pose_a, pi)  # (B, P, K)
+    bx, by = fp.world_xy(pose_b, pj)
+    va, vb = fp.edge_valid[pi], fp.edge_valid[pj]  # (P, K)
+    eax, eay, nax, nay = _edges_xy(ax, ay, va)
+    ebx, eby, nbx, nby = _edges_xy(bx, by, vb)
+    nx, ny = torch.cat([nax, nbx], dim=-1), torch.cat([nay, nby], dim=-1)  # (B, P, 2K)
+    valid = torch.cat([va, vb], dim=-1)  # (P, 2K)
+    pa, pb = _project(nx, ny, ax, ay), _project(nx, ny, bx, by)  # (B, P, 2K, K)
+    overlap = torch.minimum(pa.max(-1).values - pb.min(-1).values, pb.max(-1).values - pa.min(-1).values)
+    overlap = torch.where(valid[None], overlap, torch.full_like(overlap, _BIG))
+    depth = overlap.min(-1).values  # (B, P): penetration depth of the cores if positive
+    has_axis = valid.any(-1)[None]  # two point cores have no axis: use the distance
+    d2 = torch.minimum(
+        _vertex_segment_d2_xy(ax, ay, bx, by, ebx, eby), _vertex_segment_d2_xy(bx, by, ax, ay, eax, eay)
+    )
+    dist = torch.sqrt(d2 + 1e-20)
+    inside = has_axis & (depth > 0)
+    core = torch.where(inside, -torch.where(inside, depth, torch.zeros_like(depth)), dist)
+    r = fp.radius.to(pose_a.dtype)
+    return core - r[pi] - r[pj]
+
+
+# -- the reference: the same signed distance in its plain form (tests and benchmarks compare against it)
+
 
 def _edge_normals(w: Tensor, valid: Tensor) -> Tensor:
     """Unit outward normals of the edges ``v_k -> v_{k+1}`` of ``w (B, P, K, 2)``; invalid edges give 0."""
@@ -111,19 +191,11 @@ def _vertex_segment_d2(p: Tensor, q: Tensor) -> Tensor:
     return (r * r).sum(-1).flatten(-2).min(-1).values
 
 
-def signed_distance(poses: Tensor, fp: Footprints, pi: Tensor, pj: Tensor) -> Tensor:
-    """Signed distance of footprint pairs ``(pi[p], pj[p])`` at ``poses (B, N, 3)`` -> ``(B, P)``, metres.
-
-    Positive: the gap between them; negative: minus the penetration depth.
-    """
-    return signed_distance_placed(poses[:, pi], poses[:, pj], fp, pi, pj)
-
-
-def signed_distance_placed(pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: Tensor, pj: Tensor) -> Tensor:
-    """As :func:`signed_distance`, with each pair's two poses given: ``pose_a, pose_b (B, P, 3)`` -> ``(B, P)``.
-
-    Each row depends only on its own two poses, so one backward pass gives every row's Jacobian.
-    """
+def signed_distance_reference(
+    pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: Tensor, pj: Tensor
+) -> Tensor:
+    """:func:`signed_distance_placed` written plainly, points as ``(..., 2)`` vectors: the definition
+    the fast kernel is checked against (values and gradients), and the old path benchmarks time."""
     a, b = fp.world(pose_a, pi), fp.world(pose_b, pj)  # (B, P, K, 2)
     va, vb = fp.edge_valid[pi], fp.edge_valid[pj]  # (P, K)
     axes = torch.cat([_edge_normals(a, va), _edge_normals(b, vb)], dim=-2)  # (B, P, 2K, 2)

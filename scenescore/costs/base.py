@@ -236,6 +236,12 @@ class ConstraintCost(Cost):
         """Rows ``(B, M)``; feasible where every row is ``>= 0``."""
         raise NotImplementedError
 
+    def constraints_below(self, poses: Tensor, floor: Tensor) -> Tensor:
+        """Rows ``(B, M)`` for a caller that needs them only where they may be below ``floor (B, M)``:
+        exact there; elsewhere any value above ``floor`` (a term with a cheap lower bound skips those
+        rows). The default computes every row."""
+        return self.constraints(poses)
+
     def labels(self) -> list[str]:  # pragma: no cover - abstract
         """A short label per row (``"mug / plate_0"``, ``"mug: x >= -0.6"``)."""
         raise NotImplementedError

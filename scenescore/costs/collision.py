@@ -13,7 +13,7 @@ from pydantic import Field
 from torch import Tensor
 
 from ..exact import overlap_depth_exceeds, shapely_core
-from ..geometry import signed_distance, signed_distance_placed
+from ..geometry import signed_distance_placed, signed_distance_reference
 from ..memory import chunk_rows, return_freed_memory
 from .base import (
     ConstraintCost,
@@ -32,6 +32,12 @@ __all__ = ["HingeCollision", "CollisionSpec"]
 # bytes one pair of one pose set takes while its signed distance is computed (float64, with the
 # footprints' vertices and the intermediates; measured about 2 KB)
 PAIR_BYTES = 4096
+# metres added to the bounding-circle test on top of the rounding allowance: a pair is skipped only
+# when its circles are this far beyond the margin, so its computed signed distance is certainly above it
+CULL_CUSHION = 1e-6
+# fewer pair rows than this (pose sets x pairs) are computed in full: the screening's own few dozen
+# operations would cost more than the kernel it saves
+SCREEN_ROWS = 256
 
 
 class HingeCollision(ConstraintCost):
@@ -39,7 +45,19 @@ class HingeCollision(ConstraintCost):
 
     ``pairs``: ``"all"`` (every pair in which at least one object moves) or a list of ``[name, name]``.
     Rows ``g = sd - margin`` per pair, in metres; see :mod:`scenescore.costs.geometry` for ``sd``.
+
+    The hinge (``evaluate``) and ``violation`` compute the signed distance only for the pairs whose
+    bounding circles (about each object's origin) come within ``margin`` of each other; the others'
+    rows are certainly positive, so their hinge and its gradient are exactly 0. With a gradient to
+    take, the pairs that may touch are screened without one and only those that overlap are evaluated
+    again with it. The numbers are those of the full computation, bit for bit (small batches, below
+    :data:`SCREEN_ROWS` pair rows, are computed in full). ``constraints`` and ``jacobian`` give every
+    row exactly.
     """
+
+    # how the hinge is computed (tests and benchmarks compare them): "fast" (the screened pairs),
+    # "full" (every pair, the same kernel) or "reference" (every pair, the plain kernel)
+    _path: Literal["fast", "full", "reference"] = "fast"
 
     def __init__(
         self,
@@ -74,6 +92,76 @@ class HingeCollision(ConstraintCost):
         self._pairs = pairs
         self._pi = torch.tensor([p[0] for p in pairs], dtype=torch.long, device=b.device)
         self._pj = torch.tensor([p[1] for p in pairs], dtype=torch.long, device=b.device)
+        fp = b.footprints
+        circle = fp.verts.norm(dim=-1).amax(-1) + fp.radius  # (N,) bounding circle about the origin
+        self._reach = circle[self._pi] + circle[self._pj] + self.margin + CULL_CUSHION  # (P,)
+
+    def _kernel(self, pose_a: Tensor, pose_b: Tensor, pi: Tensor, pj: Tensor) -> Tensor:
+        fn = signed_distance_reference if self._path == "reference" else signed_distance_placed
+        return fn(pose_a, pose_b, self.binding.footprints, pi, pj)
+
+    def _circles(self, poses: Tensor) -> tuple[Tensor, Tensor]:
+        """Squared centre distance ``(B, P)`` and the reach ``(P,)`` beyond which a pair's row is certainly
+        positive: the bounding circles' radii, the margin, and an allowance for the rounding of the
+        signed distance computed from these coordinates (float32 included)."""
+        xy = poses[..., :2].detach()
+        d = xy[:, self._pi] - xy[:, self._pj]  # (B, P, 2)
+        scale = float(xy.abs().amax()) if xy.numel() else 0.0
+        eps = torch.finfo(poses.dtype).eps
+        reach = self._reach.to(poses.device, poses.dtype) + 64 * eps * (scale + float(self._reach.max()))
+        return d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1], reach
+
+    def _near(self, poses: Tensor) -> Tensor:
+        """``(B, P)``: the pairs whose bounding circles come within the margin (NaN poses count as near,
+        so that they reach the cost); the others' rows are certainly positive."""
+        d2, reach = self._circles(poses)
+        return ~(d2 > reach * reach)
+
+    def _rows_at(self, poses: Tensor, flat: Tensor) -> Tensor:
+        """Rows ``g`` of the pairs ``flat`` (indices into the flattened ``(B, P)``) -> ``(M,)``, in chunks."""
+        p = len(self._pairs)
+        rows = chunk_rows(PAIR_BYTES, f"collision {self.name!r}: one pair", "the number of objects or pairs")
+        pi_all, pj_all = self._pi.to(flat.device), self._pj.to(flat.device)
+        parts = []
+        for a in range(0, len(flat), rows):
+            f = flat[a : a + rows]
+            bi, k = f // p, f % p
+            pi, pj = pi_all[k], pj_all[k]
+            parts.append(self._kernel(poses[bi, pi][None], poses[bi, pj][None], pi, pj)[0] - self.margin)
+        if len(parts) > 1:
+            return_freed_memory()
+        return parts[0] if len(parts) == 1 else torch.cat(parts)
+
+    def _hinge_rows(self, poses: Tensor) -> Tensor:
+        """``relu(-g) (B, P)``, computed only where the pair may touch (0 elsewhere, exactly as computed)."""
+        b, p = poses.shape[0], len(self._pairs)
+        flat = self._near(poses).flatten().nonzero().squeeze(1)  # b-major, as the full computation
+        out = poses.new_zeros(b * p)
+        grad = torch.is_grad_enabled() and poses.requires_grad
+        if len(flat) and grad:
+            with torch.no_grad():
+                g = self._rows_at(poses, flat)
+            flat = flat[~(g >= 0)]  # only overlapping rows carry a gradient (NaN ones go on to the cost)
+        if len(flat):
+            out = out.index_put((flat,), torch.relu(-self._rows_at(poses, flat)))
+        elif grad:  # nothing overlaps: still a function of the poses (its gradient 0), as the full one is
+            out = out.index_put((flat,), poses.reshape(-1)[:0])
+        return out.view(b, p)
+
+    def _screens(self, poses: Tensor) -> bool:
+        """Whether to screen the pairs of ``poses`` by their bounding circles (else: compute them all)."""
+        return self._path == "fast" and bool(self._pairs) and poses.shape[0] * len(self._pairs) >= SCREEN_ROWS
+
+    def evaluate(self, poses: Tensor) -> Tensor:
+        if not self._screens(poses):
+            return super().evaluate(poses)
+        return (self._hinge_rows(poses) ** self.power).sum(-1)
+
+    def violation(self, poses: Tensor) -> Tensor:
+        poses = self._check(poses)
+        if not self._screens(poses):
+            return super().violation(poses)
+        return self._hinge_rows(poses).max(-1).values
 
     def signed_distance(self, poses: Tensor) -> Tensor:
         """Signed distance per pair ``(B, P)``; many pose sets (candidates being screened) go in chunks of
@@ -81,21 +169,38 @@ class HingeCollision(ConstraintCost):
         poses = self._check(poses)
         if not self._pairs:
             return poses.new_zeros(poses.shape[0], 0)
-        fp, b = self.binding.footprints, poses.shape[0]
+        b = poses.shape[0]
         rows = chunk_rows(
             PAIR_BYTES * len(self._pairs),
             f"collision {self.name!r}: one pose set of {len(self._pairs)} pairs",
             "the number of objects or pairs",
         )
         if b <= rows:
-            return signed_distance(poses, fp, self._pi, self._pj)
+            return self._kernel(poses[:, self._pi], poses[:, self._pj], self._pi, self._pj)
         return_freed_memory()
         return torch.cat(
-            [signed_distance(poses[a : a + rows], fp, self._pi, self._pj) for a in range(0, b, rows)]
+            [
+                self._kernel(poses[a : a + rows, self._pi], poses[a : a + rows, self._pj], self._pi, self._pj)
+                for a in range(0, b, rows)
+            ]
         )
 
     def constraints(self, poses: Tensor) -> Tensor:
         return self.signed_distance(poses) - self.margin
+
+    def constraints_below(self, poses: Tensor, floor: Tensor) -> Tensor:
+        """Rows exact where the bounding circles allow them to reach ``floor (B, P)``; elsewhere the
+        circles' lower bound (above ``floor``, not differentiated)."""
+        poses = self._check(poses)
+        b, p = poses.shape[0], len(self._pairs)
+        if not self._screens(poses):
+            return self.constraints(poses)
+        d2, reach = self._circles(poses)
+        bound = torch.sqrt(d2) - reach  # <= the row: sd >= centre distance - both radii
+        flat = (~(bound > floor)).flatten().nonzero().squeeze(1)  # NaN: computed
+        if not len(flat):
+            return bound
+        return bound.flatten().index_put((flat,), self._rows_at(poses, flat)).view(b, p)
 
     def jacobian(self, poses: Tensor) -> tuple[Tensor, Tensor]:
         """Per-pair rows and Jacobian ``(B, P)``, ``(B, P, N, 3)``: each pair gets its own copy of its two poses."""
@@ -108,7 +213,7 @@ class HingeCollision(ConstraintCost):
         with torch.enable_grad():
             pa = poses[:, self._pi].clone().requires_grad_(True)
             pb = poses[:, self._pj].clone().requires_grad_(True)
-            g = signed_distance_placed(pa, pb, self.binding.footprints, self._pi, self._pj) - self.margin
+            g = self._kernel(pa, pb, self._pi, self._pj) - self.margin
             ga, gb = torch.autograd.grad(g.sum(), (pa, pb))
         rows = torch.arange(p, device=poses.device)
         jac[:, rows, self._pi] = ga

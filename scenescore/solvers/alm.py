@@ -16,6 +16,11 @@ it; no coordinate moves more than ``step_max``: metres, or radians for an angle)
 become ``relu(lam + rho c)`` and ``rho`` grows by ``penalty_growth`` on rows whose violation did not
 fall by a quarter.
 
+A row above ``slack + lam / rho`` adds a constant to ``L`` (no gradient, no multiplier), so only its
+being there matters: the rows are asked for with that floor (``ConstraintCost.constraints_below``),
+and the collision term bounds far-apart pairs by their bounding circles instead of computing them.
+The iterates are the same, bit for bit, as with every row computed.
+
 Every particle has its own convergence test: its largest violation (metres) within ``tolerance`` and
 stationarity: the Lagrangian's gradient within ``tol_grad``, or the particle stopped moving (less than
 ``tol_step`` in an outer iteration; contacts between boxes are kinks where no gradient vanishes).
@@ -111,18 +116,33 @@ class _Lagrangian:
             or [torch.zeros(0, dtype=f64, device=dev)]
         )
         self.movable = torch.as_tensor(problem.movable_mask, device=problem.device)  # (N,)
+        self.sizes = [len(c.labels()) for c in self.rows_of]
 
-    def rows(self, x: Tensor) -> Tensor:
-        """``g (B, R)``: every constraint row, feasible where ``>= 0`` (metres)."""
+    def rows(self, x: Tensor, floor: Tensor | None = None) -> Tensor:
+        """``g (B, R)``: every constraint row, feasible where ``>= 0`` (metres). With ``floor (B, R)``: exact
+        where a row may be below it, elsewhere any value above it (see ``ConstraintCost.constraints_below``)."""
         if not self.rows_of:
             return x.new_zeros(x.shape[0], 0)
-        return torch.cat([c.constraints(x) for c in self.rows_of], dim=1)
+        if floor is None:
+            return torch.cat([c.constraints(x) for c in self.rows_of], dim=1)
+        out, a = [], 0
+        for c, m in zip(self.rows_of, self.sizes):
+            out.append(c.constraints_below(x, floor[:, a : a + m]))
+            a += m
+        return torch.cat(out, dim=1)
 
     def warm_multipliers(self, g: Tensor) -> Tensor:
         """``lam (B, R)``: the force each violated row feels from its weighted penalty ``w relu(-g) ** p``."""
         v = torch.relu(-g)
         force = self.weight * self.power * torch.where(v > 0, v ** (self.power - 1), torch.zeros_like(v))
         return torch.where(g < 0, force, torch.zeros_like(force))
+
+    def inactive_above(self, lam: Tensor, rho: Tensor) -> Tensor:
+        """``(B, R)``: above this a row's term is constant (``relu(lam + rho (slack - g)) = 0``, rounding
+        allowed for), so that its value only needs to be known to be there: no multiplier, no violation,
+        no gradient (the rows a term can bound cheaply, far-apart pairs, are then not computed)."""
+        level = self.o.slack + lam / rho
+        return level + 1e3 * torch.finfo(level.dtype).eps * (1 + level.abs())
 
     def __call__(self, x: Tensor, lam: Tensor, rho: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
         """At ``x (B, N, 3)``: the AL value ``(B,)``, its gradient ``(B, N, 3)`` (zero on objects that do not
@@ -132,7 +152,7 @@ class _Lagrangian:
             f = x.new_zeros(x.shape[0])
             for w, c in self.objective:
                 f = f + w * c(x)
-            g = self.rows(x)
+            g = self.rows(x, self.inactive_above(lam, rho))
             c_ = self.o.slack - g
             shifted = torch.relu(lam + rho * c_)
             value = f + ((shifted**2 - lam**2) / (2 * rho)).sum(-1)

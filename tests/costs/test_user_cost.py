@@ -142,8 +142,12 @@ def test_langevin_uses_every_thread_for_large_populations_through_solve():
     torch.set_num_threads(2)  # other test modules pin one thread; this one needs a pool
     before = torch.get_num_threads()
     p = ss.Problem(_scene(), _cost(), movable=["a", "b"])
-    big = ss.solve(p, "langevin", options={"langevin": {"particles": 256, "steps": 2, "final_descent": 0}})
-    assert big.threads == before
+    opts = {"langevin": {"particles": 256, "steps": 2, "final_descent": 0}}
+    with ss.thread_budget(2):  # a budget given: the large population uses all of it, busy machine or not
+        big = ss.solve(p, "langevin", options=opts)
+    assert big.threads == 2
+    auto = ss.solve(p, "langevin", options=opts)  # automatic: at most the cores other processes leave free
+    assert 1 <= auto.threads <= before
     small = ss.solve(p, "langevin", options={"langevin": {"particles": 8, "steps": 2, "final_descent": 0}})
     assert small.threads == 1
     pinned = ss.solve(p, "langevin", options={"langevin": {"particles": 256, "steps": 2, "threads": 1}})
