@@ -89,9 +89,11 @@ class TrainConfig:
     # round disks' headings ignored by the energy (their headings in the data are arbitrary, and a network
     # that sees them learns noise: on zoo-jars, all round, placements were 15 cm off with them seen)
     round_invariant: bool = True
-    # width of the network's edge encoder (see EnergyConfig.edge_encoder); None: raw edge features.
-    # On zoo-bedroom and zoo-pcb (seed 0) it cut the mean placement error by a third
-    edge_encoder: int | None = 32
+    # width of the network's edge encoder (see EnergyConfig.edge_encoder); None: the raw edge features.
+    # Not the default: with 32 it halved Table 1's error (1.63 cm against 3.39, three seeds) and cut
+    # zoo-bedroom's by a third (one seed), but sent Table 2's unseen spoons 13.2 cm off on seed 0
+    # (2.95 +- 1.75 cm without it)
+    edge_encoder: int | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):

@@ -42,7 +42,7 @@ def test_methods_help_lists_every_experiments_methods():
     from scenescore.experiments import compose, missing, novel
 
     text = next(a.help for a in _subparsers()["experiment"]._actions if "--methods" in a.option_strings)
-    for m in missing.METHODS + novel.METHODS + compose.METHODS:
+    for m in missing.METHODS + missing.EXTRA_METHODS + novel.METHODS + compose.METHODS:
         assert m in text, m
 
 

@@ -31,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--methods",
         default=None,
         help="comma-separated subset of the methods (default all). missing: "
-        "NeatNet, Nearest-Nbr, SceneScore-Abs, 'SceneScore (LeakyReLU)', SceneScore, Oracle; novel: "
+        "NeatNet, Nearest-Nbr, SceneScore-Abs, 'SceneScore (LeakyReLU)', SceneScore, Oracle, and only "
+        "when named 'SceneScore (edge encoder)'; novel: "
         "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>alm)', "
         "'SceneScore (langevin>osqp)', "
         "'SceneScore (langevin>casadi)'",
