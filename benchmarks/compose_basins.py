@@ -15,7 +15,9 @@ repaired samples (energy + penalties), correct against incorrect (medians), whic
 the energy puts them.
 
 ``--train`` changes the experiment's training settings (``TrainConfig`` fields, as JSON), e.g.
-``{"iterations": 2000}`` or ``{"perturbed": 8}``.
+``{"iterations": 2000}``, ``{"perturbed": 8}`` or, for the network with its edge encoder as the trainer's
+default has it, ``{"edge_encoder": 32, "feature_noise": 0.6, "size_noise": 0.3}`` (the experiment's own
+network has none: ``RAW_EDGES``).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from scenescore.experiments.compose import _correct, langevin_options, tv_proble
 from scenescore.models import ScoreModel, load
 from scenescore.scenarios.tv import TVScenario
 from scenescore.solvers import get, solve
-from scenescore.training import TrainConfig, train
+from scenescore.training import RAW_EDGES, TrainConfig, train
 
 
 def energy(seed: int, changes: dict[str, Any], model_dir: Path | None) -> ScoreModel:
@@ -45,7 +47,9 @@ def energy(seed: int, changes: dict[str, Any], model_dir: Path | None) -> ScoreM
     if path is not None and path.exists():
         return load(path)
     train_scenes, _ = TVScenario().split(seed)
-    tc = TrainConfig(**{"iterations": 600, "full_fraction": 1.0, "single_fraction": 0.0, **changes})
+    tc = TrainConfig(
+        **{"iterations": 600, "full_fraction": 1.0, "single_fraction": 0.0, **RAW_EDGES, **changes}
+    )
     model = train(train_scenes, tc, seed=seed, progress=False)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)

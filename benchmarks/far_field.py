@@ -3,7 +3,7 @@
     python benchmarks/far_field.py [--scenario zoo-hall] [--seed 0] [--grow 3]
 
 Three models on the same data and seed: the old defaults (edge offsets linear in a fixed 0.1 m length
-scale), the current ones (the data's length scale, linear offsets), and the data's scale with offsets
+scale, no edge encoder: ``RAW_EDGES``), the current ones (the data's length scale, linear offsets), and the data's scale with offsets
 saturating beyond the data's largest (``TrainConfig(saturate_edges=True)``).
 Each places the missing object of 16 test scenes twice: in the scenes' own bounds, and in bounds
 ``--grow`` times larger (the same objects; the room around them larger than any in training). For
@@ -25,10 +25,12 @@ import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.models.trust import BOUND_TOL, touching_bound
 from scenescore.placement import PLACE, place_many, placement_problem
-from scenescore.training import TrainConfig, train
+from scenescore.training import RAW_EDGES, TrainConfig, train
 
 CONFIGS = {
-    "linear offsets, 0.1 m (old)": TrainConfig(length_scale=0.1, saturate_edges=False, walls=False),
+    "linear offsets, 0.1 m (old)": TrainConfig(
+        length_scale=0.1, saturate_edges=False, walls=False, **RAW_EDGES
+    ),
     "data's scale, linear (current default)": TrainConfig(),
     "data's scale, saturating": TrainConfig(saturate_edges=True),
 }

@@ -7,10 +7,11 @@ import pytest
 import torch
 
 from scenescore import Scene, SceneObject
+from scenescore.errors import ConfigError
 from scenescore.placement import PLACE as PLACE_DEFAULT
 from scenescore.placement import place
 from scenescore.sampling import LangevinConfig
-from scenescore.training import TrainConfig, train
+from scenescore.training import RAW_EDGES, TrainConfig, train
 
 
 def _offset_scenes(n, seed):
@@ -89,3 +90,27 @@ def test_feature_noise_is_seeded_and_changes_training():
     c = train(scenes, quiet, seed=2, progress=False)
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
+
+
+def test_size_noise_is_seeded_and_changes_training():
+    torch.set_num_threads(1)
+    scenes = _offset_scenes(6, 1)
+    cfg = TrainConfig(
+        iterations=5, batch_scenes=4, negatives=4, feature_noise=0.0, model={"hidden": 16, "layers": 1}
+    )
+    assert cfg.size_noise > 0  # on by default
+    quiet = TrainConfig(**{**cfg.to_dict(), "size_noise": 0.0})
+    a, b = (train(scenes, cfg, seed=2, progress=False) for _ in range(2))
+    c = train(scenes, quiet, seed=2, progress=False)
+    pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
+    assert torch.equal(pa, pb) and not torch.equal(pa, pc)
+    with pytest.raises(ConfigError, match="size_noise"):
+        TrainConfig(size_noise=-0.1)
+
+
+def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
+    scenes = _offset_scenes(4, 1)
+    small = {"iterations": 2, "batch_scenes": 2, "negatives": 2}
+    assert train(scenes, TrainConfig(**small), seed=0, progress=False).config.edge_encoder == 32
+    raw = train(scenes, TrainConfig(**small, **RAW_EDGES), seed=0, progress=False)
+    assert raw.config.edge_encoder is None and raw.info["train_config"]["size_noise"] == 0.0

@@ -55,6 +55,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--absolute", action="store_true", help="the Abs ablation: absolute poses, no edges")
     p.add_argument(
+        "--raw-edges",
+        action="store_true",
+        help="no edge encoder: the message layers read the raw relative poses, with the feature noise of "
+        "the earlier default (better on Table 2's ordered rows, worse on larger rooms)",
+    )
+    p.add_argument(
         "--encoder",
         default=None,
         help=(
@@ -137,11 +143,12 @@ def run_train(args: argparse.Namespace) -> int:
     from ..evaluation import evaluate
     from ..plot import training_figure
     from ..scene import atomic_write_text, read_jsonl, write_jsonl
-    from ..training import TrainConfig, check_training_data, split_validation, train
+    from ..training import RAW_EDGES, TrainConfig, check_training_data, split_validation, train
 
     # settings first: a bad value fails before any data is read or any training is done
     given = {"iterations": args.iterations, "negatives": args.negatives}
-    cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
+    raw = RAW_EDGES if args.raw_edges else {}
+    cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None}, **raw)
     device = device_of(args)
     if args.log_dir is not None:
         from ..scene import check_output_path

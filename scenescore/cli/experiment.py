@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="comma-separated subset of the methods (default all). missing: "
         "NeatNet, Nearest-Nbr, SceneScore-Abs, 'SceneScore (LeakyReLU)', SceneScore, Oracle, and only "
-        "when named 'SceneScore (edge encoder)'; novel: "
+        "when named 'SceneScore (raw edges)' (no edge encoder, the earlier default); novel: "
         "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>alm)', "
         "'SceneScore (langevin>osqp)', "
         "'SceneScore (langevin>casadi)'",

@@ -69,6 +69,15 @@ def test_generate_train_place(trained, capsys):
     assert all(f"{a}: overlaps {b} (exact check)" in err for a, b in left)
 
 
+def test_train_raw_edges_has_no_edge_encoder(trained, tmp_path):
+    from scenescore.models import load
+
+    args = ["train", str(trained / "data.jsonl"), "--iterations", "3", "--val", "0", "--quiet", "--force"]
+    assert main([*args, "--out", str(tmp_path / "raw.ckpt"), "--raw-edges"]) == 0
+    assert load(tmp_path / "raw.ckpt").config.edge_encoder is None
+    assert load(trained / "m.ckpt").config.edge_encoder == 32  # the default network has it
+
+
 def test_threads_is_scoped_and_a_seeded_placement_repeats(trained, capsys):
     """``--threads N`` sets torch's threads for the run only; the same seed places the same poses."""
     d = trained
