@@ -3,8 +3,8 @@
     python benchmarks/far_field.py [--scenario zoo-hall] [--seed 0] [--grow 3]
 
 Three models on the same data and seed: the old defaults (edge offsets linear in a fixed 0.1 m length
-scale, no edge encoder: ``RAW_EDGES``), the current ones (the data's length scale, linear offsets), and the data's scale with offsets
-saturating beyond the data's largest (``TrainConfig(saturate_edges=True)``).
+scale, no edge encoder: ``RAW_EDGES``), the current ones (the data's length scale, linear offsets), and
+the data's scale with offsets saturating beyond the data's largest (``TrainConfig(saturate_edges=True)``).
 Each places the missing object of 16 test scenes twice: in the scenes' own bounds, and in bounds
 ``--grow`` times larger (the same objects; the room around them larger than any in training). For
 each, the table gives the mean and worst error, how many placements land more than 25 cm and 10

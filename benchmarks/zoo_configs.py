@@ -1,7 +1,7 @@
 """Training settings compared on the zoo: the robustness table for each, worst scenario first.
 
     python benchmarks/zoo_configs.py --scenarios zoo-bedroom,zoo-banquet --seeds 3 \\
-        --configs '[{}, {"edge_encoder": 32, "edge_skip": true}]' [--jobs 2] [--out DIR]
+        --configs '[{}, {"edge_encoder": null}]' [--jobs 2] [--out DIR]
 
 Each config is a JSON object of ``TrainConfig`` fields (``{}``: the CLI's defaults). For every config the
 zoo experiment's protocol runs as ``scenescore experiment zoo`` does (48 training and 16 test scenes,

@@ -16,6 +16,7 @@ import os
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -138,7 +139,9 @@ class TrainConfig:
 
 #: the network without its edge encoder, with the feature noise it was trained with as the default (before
 #: the encoder became the default): ``TrainConfig(**RAW_EDGES)``
-RAW_EDGES: dict[str, Any] = {"edge_encoder": None, "feature_noise": 0.3, "size_noise": 0.0}
+RAW_EDGES: Mapping[str, Any] = MappingProxyType(
+    {"edge_encoder": None, "feature_noise": 0.3, "size_noise": 0.0}
+)
 
 
 def infonce_loss(e_pos: torch.Tensor, e_neg: torch.Tensor) -> torch.Tensor:

@@ -9,7 +9,7 @@ over seeds.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from ..encoders import Encoder
@@ -38,7 +38,7 @@ def _methods(
 
     tc = TrainConfig(iterations=150) if quick else TrainConfig()
 
-    def scenescore(name: str, train: dict[str, Any] | None = None, **model: Any) -> SceneScorePlacer:
+    def scenescore(name: str, train: Mapping[str, Any] | None = None, **model: Any) -> SceneScorePlacer:
         cfg = TrainConfig(**{**tc.to_dict(), **(train or {}), "model": {**tc.model, **model}})
         return SceneScorePlacer(name, cfg, encoder=encoder, device=device)
 
