@@ -24,7 +24,7 @@ import torch
 import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.models.trust import BOUND_TOL, touching_bound
-from scenescore.placement import PLACE, place_many, placement_problem
+from scenescore.placement import place_many, placement_problem
 from scenescore.training import RAW_EDGES, TrainConfig, train
 
 CONFIGS = {
@@ -62,8 +62,8 @@ def main(argv: list[str] | None = None) -> None:
                 (x0, y0), (x1, y1) = s.bounds
                 s.bounds = ((grow * x0, grow * y0), (grow * x1, grow * y1))
                 scenes.append(s)
-            out = place_many(model, scenes[:8], PLACE, args.seed) + place_many(
-                model, scenes[8:], PLACE, args.seed + 8
+            out = place_many(model, scenes[:8], None, args.seed) + place_many(
+                model, scenes[8:], None, args.seed + 8
             )
             t, pinned, spurious = [], 0, 0
             for c, s, p in zip(cases, scenes, out):

@@ -23,7 +23,7 @@ import torch
 
 import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
-from scenescore.placement import PLACE, place_many
+from scenescore.placement import place_many
 from scenescore.training import TrainConfig, split_validation, train
 
 
@@ -45,8 +45,8 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
 
     # in distribution
-    placed = place_many(model, [c.scene for c in cases[:8]], PLACE, args.seed)
-    placed += place_many(model, [c.scene for c in cases[8:]], PLACE, args.seed + 8)
+    placed = place_many(model, [c.scene for c in cases[:8]], None, args.seed)
+    placed += place_many(model, [c.scene for c in cases[8:]], None, args.seed + 8)
     t = np.array(
         [100 * math.hypot(*(np.array(p[c.name].pose[:2]) - c.truth[:2])) for c, p in zip(cases, placed)]
     )
@@ -83,8 +83,8 @@ def main(argv: list[str] | None = None) -> None:
         odd = ss.SceneObject("novel_0", "anvil", size, None, color=colour)  # type: ignore[arg-type]
         truth = c.scene.with_poses([c.truth], [c.name])
         scenes.append(ss.Scene([*truth.objects, odd], truth.bounds))
-    out = place_many(model, scenes[:8], PLACE, args.seed) + place_many(
-        model, scenes[8:], PLACE, args.seed + 8
+    out = place_many(model, scenes[:8], None, args.seed) + place_many(
+        model, scenes[8:], None, args.seed + 8
     )
     rows.append(("a novel object", len(out), sum(bool(p.meta["placement"]["novel_0"]["flags"]) for p in out)))
 

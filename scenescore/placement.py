@@ -9,7 +9,8 @@ large batches.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 from typing import Protocol, cast
 
 from tqdm.auto import tqdm
@@ -31,6 +32,8 @@ __all__ = [
     "place",
     "place_many",
     "placement_problem",
+    "covering",
+    "CANDIDATE_DENSITY",
     "non_overlap",
     "overlapping",
     "Placer",
@@ -38,10 +41,30 @@ __all__ = [
 ]
 
 
-#: placement's default: 64 particles seeded by the best of 2048 uniform draws, the PLACEMENT schedule
-PLACE = LangevinOptions(particles=64, candidates=2048, chain=PLACEMENT)
+#: placement's default: 64 particles seeded by the best of 2048 uniform draws (more in bounds large for the
+#: objects: :func:`covering`), the PLACEMENT schedule; the answer is the best particle that puts no object
+#: where the data has none of its category (at a bound none touches, or far from the rest)
+PLACE = LangevinOptions(particles=64, candidates=2048, chain=PLACEMENT, trusted_first=True)
+#: uniform candidates per square length scale of the bounds that placement screens at the least: 1 cm parts
+#: on a 0.3 m board (3600 square length scales) need about 8000, where 2048 left the right slot unfound
+#: for 5 of zoo-pcb's 16 test scenes (``benchmarks/zoo_configs.py``'s "misses: search")
+CANDIDATE_DENSITY = 2.0
+MAX_COVERING = 32_768  # the most candidates that covering the bounds asks for
 #: the weight of non-overlap in placement: energy per length scale of penetration (free of units)
 OVERLAP_WEIGHT = 10.0
+
+
+def covering(options: LangevinOptions, model: ScoreModel, scenes: list[Scene]) -> LangevinOptions:
+    """``options`` with at least :data:`CANDIDATE_DENSITY` candidates per square length scale of the
+    largest bounds of ``scenes`` (at most :data:`MAX_COVERING`), so that small objects in large bounds
+    start near their slot as often as large ones; free of units. Placement applies it to its defaults
+    (options given by hand are used as given); ``candidates=0`` (no screening) stays."""
+    if options.candidates == 0:
+        return options
+    area = max((s.bounds[1][0] - s.bounds[0][0]) * (s.bounds[1][1] - s.bounds[0][1]) for s in scenes)
+    need = math.ceil(CANDIDATE_DENSITY * area / model.config.length_scale**2 / 1024) * 1024
+    need = min(need, MAX_COVERING)
+    return options if need <= options.candidates else replace(options, candidates=need)
 
 
 def non_overlap(model: ScoreModel, scene: Scene, names: list[str] | None = None) -> HingeCollision | None:
@@ -93,8 +116,8 @@ def place_many(
     energy_only: bool = False,
 ) -> list[Scene]:
     """:func:`place` for several scenes at once: their problems solved together by
-    :meth:`LangevinSolver.solve_many`, one batch per number of objects (the timings need it)."""
-    solver = LangevinSolver(options or PLACE)
+    :meth:`LangevinSolver.solve_many`, one batch per number of objects (the timings need it); without
+    ``options``, :data:`PLACE` covering each batch's largest bounds (:func:`covering`)."""
     out = [s.copy() for s in scenes]
     groups: dict[int, list[int]] = {}
     for i, s in enumerate(scenes):
@@ -103,6 +126,7 @@ def place_many(
     with torch_threads(1):  # tiny tensors; each batched chain chooses threads for its particles
         for idx in groups.values():
             problems = [placement_problem(model, scenes[i], energy_only) for i in idx]
+            solver = LangevinSolver(options or covering(PLACE, model, [scenes[i] for i in idx]))
             results = solver.solve_many(problems, seed=seed)
             for i, r in zip(idx, results):
                 out[i] = _filled(scenes[i], r)
@@ -129,15 +153,17 @@ def place(
 ) -> Scene:
     """Fill every ``null`` pose of ``scene`` (the others stay fixed); returns a new scene.
 
-    This is ``ss.solve(placement_problem(model, scene), LangevinSolver(options or PLACE), seed=seed)``:
-    placing and solving give the same answer for the same model, seed and options. By default the
+    This is ``ss.solve(placement_problem(model, scene), LangevinSolver(opts), seed=seed)`` with ``opts =
+    options or covering(PLACE, model, [scene])``: placing and solving give the same answer for the same
+    model, seed and options. By default the
     placed objects keep off the others (:func:`non_overlap`); ``energy_only`` places by the learned
     energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
     """
     if not scene.unknown:
         return scene.copy()
     with torch_threads(1):  # tiny tensors; the chain chooses threads for its particles
-        r = solve(placement_problem(model, scene, energy_only), LangevinSolver(options or PLACE), seed=seed)
+        opts = options or covering(PLACE, model, [scene])
+        r = solve(placement_problem(model, scene, energy_only), LangevinSolver(opts), seed=seed)
         return _filled(scene, r)
 
 
@@ -157,7 +183,7 @@ class SceneScorePlacer:
 
     name: str = "SceneScore"
     train_config: TrainConfig = field(default_factory=TrainConfig)
-    place_options: LangevinOptions = PLACE
+    place_options: LangevinOptions | None = None  # None: PLACE, covering the bounds (covering)
     energy_only: bool = True  # the paper's protocol: the learned energy alone
     encoder: Encoder | None = None
     progress: bool = False

@@ -160,6 +160,14 @@ class Problem:
             else v
         )
 
+    def untrusted(self, poses: Tensor) -> Tensor:
+        """Rows ``(B,)`` that a term does not trust (:meth:`Cost.untrusted`: a moving object where the
+        learned energy's data never had one); all False when no term has an opinion."""
+        x = self.full(poses)
+        with torch.no_grad():
+            u = self.cost.untrusted(x)
+        return torch.zeros(x.shape[0], dtype=torch.bool, device=self.device) if u is None else u
+
     def check(self, poses: np.ndarray | Tensor, tol: float = FEASIBILITY_TOL) -> Feasibility:
         """The exact check of one pose set ``(N, 3)``: each cost term checks itself, within ``tol`` m."""
         p = self.full(poses)[0].detach().cpu().numpy()

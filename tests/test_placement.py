@@ -107,3 +107,27 @@ def test_categories_that_overlap_in_the_data_may_overlap_when_placed():
     hinge = non_overlap(model, scenes[0].without("lamp_0"))
     assert hinge is not None and hinge.pairs == [["lamp_0", "rug_0"]]
     assert overlapping(model, scenes[0], ["lamp_0"]) == []
+
+
+def test_covering_screens_more_candidates_where_the_objects_are_small_for_the_bounds():
+    """Placement's defaults cover the bounds at CANDIDATE_DENSITY per square length scale: the dining table
+    (1.2 m, length scale 0.1 m) keeps PLACE's 2048; the same scene in bounds 8 times wider asks for more,
+    and the same count at every scale (free of units); options given by hand are used as given."""
+    from scenescore.placement import CANDIDATE_DENSITY, MAX_COVERING, covering
+
+    model, scene = _model(), _scenes()[0]
+    assert covering(PLACE, model, [scene]) is PLACE
+    wide = scene.copy()
+    wide.bounds = ((-4.8, -4.8), (4.8, 4.8))
+    got = covering(PLACE, model, [scene, wide]).candidates  # the largest bounds of the batch
+    assert got >= CANDIDATE_DENSITY * 9.6**2 / 0.1**2 > PLACE.candidates and got % 1024 == 0
+    assert got == min(MAX_COVERING, got)
+    small = ScoreModel.create(FootprintEncoder(), hidden=16, layers=2, length_scale=0.1 / 8)
+    tiny = scene.copy()
+    tiny.bounds = tuple(tuple(v / 8 for v in b) for b in wide.bounds)  # type: ignore[assignment]
+    assert covering(PLACE, small, [tiny]).candidates == got
+    assert covering(replace(PLACE, candidates=0), model, [wide]).candidates == 0
+    # place without options uses the covering defaults; with options, those
+    a = place(model, wide.without("fork_0"), None, seed=1)
+    b = place(model, wide.without("fork_0"), covering(PLACE, model, [wide]), seed=1)
+    assert a["fork_0"].pose == b["fork_0"].pose

@@ -114,3 +114,33 @@ def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
     assert train(scenes, TrainConfig(**small), seed=0, progress=False).config.edge_encoder == 32
     raw = train(scenes, TrainConfig(**small, **RAW_EDGES), seed=0, progress=False)
     assert raw.config.edge_encoder is None and raw.info["train_config"]["size_noise"] == 0.0
+
+
+def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
+    """Scenes of 3 to 20 objects in one batch: the grouped, cropped pass gives the padded pass's energies
+    to float rounding (padding adds only zeros), in several groups, and so do their gradients."""
+    from scenescore.training import _best_cuts, _BySize
+
+    def row(n: int, shift: float) -> Scene:
+        objs = [
+            SceneObject(f"b{i}", "book", (0.02, 0.2), (-0.4 + 0.04 * i + shift, 0.0, 0.0)) for i in range(n)
+        ]
+        return Scene(objs, ((-0.6, -0.3), (0.6, 0.3)))
+
+    scenes = [row(n, 0.001 * n) for n in (3, 4, 5, 8, 9, 12, 19, 20)]
+    model = train(scenes, TrainConfig(iterations=2, batch_scenes=4, negatives=2), seed=0, progress=False)
+    st = model.tensors(scenes)
+    by = _BySize(st.mask.sum(dim=1))
+    assert len(by.groups) > 1 and sorted(i for g, _ in by.groups for i in g) == list(range(8))
+    k = 3
+    rep = st.repeat(k)
+    x = rep.poses + 0.01 * torch.randn(rep.poses.shape, generator=torch.Generator().manual_seed(0))
+    padded, grouped = model.energy(x, rep), by.energy(model, x, rep, k)
+    assert torch.allclose(padded, grouped, rtol=1e-5, atol=1e-5)
+    w = model.net.layers[0].w_i.weight
+    (g1,) = torch.autograd.grad(padded.sum(), w)
+    (g2,) = torch.autograd.grad(by.energy(model, x, rep, k).sum(), w)
+    assert torch.allclose(g1, g2, rtol=1e-5, atol=1e-6)
+    # one size: one group; the cuts minimise the padded edges
+    assert len(_BySize(torch.tensor([6, 6, 6, 6])).groups) == 1
+    assert _best_cuts([2, 2, 10, 10], 4) in ([2, 4], [1, 2, 3, 4], [2, 3, 4], [1, 2, 4])

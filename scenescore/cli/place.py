@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from ..models import load
-    from ..placement import PLACE, overlapping, place
+    from ..placement import PLACE, covering, overlapping, place
     from ..plot import plot_scene
     from ..scene import Scene
     from . import UserError, device_of
@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     names = scene.unknown
     if not names:
         raise UserError(f"{args.scene}: no object has `pose: null`; nothing to place")
-    cfg = PLACE if args.particles is None else replace(PLACE, particles=args.particles)
+    cfg = covering(PLACE, model, [scene])
+    cfg = cfg if args.particles is None else replace(cfg, particles=args.particles)
     filled = place(model, scene, cfg, seed=args.seed, energy_only=args.energy_only)
     trust = filled.meta.get("placement", {})
     for n in names:

@@ -140,6 +140,12 @@ class Cost:
         (only the learned energy has an opinion)."""
         return {}
 
+    def untrusted(self, poses: Tensor) -> Tensor | None:
+        """Rows of ``poses (B, N, 3)`` that put a moving object where this term's data never had one of its
+        kind (the learned energy: at a bound none touches, or far from the rest), ``(B,)`` bool;
+        None: no opinion. Solvers rank such rows after the others, before the cost."""
+        return None
+
     # -- binding ------------------------------------------------------------------------------------
     def model_device(self) -> torch.device | None:
         """The device of the model this term evaluates (a learned energy's), or None: it has none and
@@ -406,6 +412,12 @@ class Sum(Cost):
         if not vs:
             return None
         return torch.stack(vs, dim=-1).max(-1).values
+
+    def untrusted(self, poses: Tensor) -> Tensor | None:
+        flags = [u for _, c in self.items if (u := c.untrusted(poses)) is not None]
+        if not flags:
+            return None
+        return torch.stack(flags, dim=-1).any(-1)
 
     @property
     def constraint_terms(self) -> list[ConstraintCost]:

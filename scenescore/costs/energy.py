@@ -13,7 +13,7 @@ from torch import Tensor
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
 from ..models.model import with_walls
-from ..models.trust import Assessment, assess
+from ..models.trust import Assessment, assess, outside_data
 from ..scene import Scene
 from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
@@ -106,6 +106,20 @@ class LearnedEnergy(Cost):
             return {}
         scene = self.visible_scene.with_poses(np.asarray(poses)[vis])
         return assess(ref, self.model, scene, moving)
+
+    def untrusted(self, poses: Tensor) -> Tensor | None:
+        """Rows that put a moving object the energy sees where the model's data never had one of its
+        category: pinned at a bound none touches, or farther from the others than any (the trust
+        reference's ``bound`` and ``far`` flags); None without a reference or a moving object."""
+        ref = self.model.trust
+        if ref is None or self.visible_scene is None:
+            return None
+        scene, vis = self.binding.scene, self.visible
+        moving = [scene.names[i] for i in vis if self.binding.movable[i]]
+        if not moving:
+            return None
+        x = poses.detach()[:, vis].to("cpu", torch.float64).numpy()
+        return torch.as_tensor(outside_data(ref, self.visible_scene, moving, x), device=poses.device)
 
     def evaluate(self, poses: Tensor) -> Tensor:
         dtype = self.model.dtype

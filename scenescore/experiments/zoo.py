@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 
 from ..evaluation import MissingCase, case_errors
 from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
-from ..placement import PLACE, place_many
+from ..placement import place_many
 from ..scenarios import get
 from ..scenarios.zoo import ZOO
 from ..scene import Scene, SceneError
@@ -120,7 +120,7 @@ def run_one(
     placed: list[Scene] = []
     with tqdm(total=len(cases), desc=f"{name}: place", unit="case", disable=not progress) as bar:
         for k in range(0, len(cases), 8):
-            placed += place_many(model, [c.scene for c in cases[k : k + 8]], PLACE, seed + k, energy_only)
+            placed += place_many(model, [c.scene for c in cases[k : k + 8]], None, seed + k, energy_only)
             bar.update(len(cases[k : k + 8]))
     # the energy at each placement and at its truth: a placement with the higher of the two is a
     # failure of the search; with the lower, the learned energy prefers the wrong pose

@@ -32,6 +32,7 @@ __all__ = [
     "reference",
     "assess",
     "touching_bound",
+    "outside_data",
     "energy_per_object",
     "overlapping_categories",
     "BOUND_TOL",
@@ -128,12 +129,18 @@ def _nearest(poses: np.ndarray) -> np.ndarray:
     return d.min(axis=1)
 
 
+def _extents(obj: SceneObject, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The axis-aligned extent ``lo, hi (B, 2)`` of ``obj``'s footprint at each pose of ``poses (B, 3)``."""
+    core, r = footprint_core(obj)
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    rot = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)  # (B, 2, 2): row-vector rotation
+    pts = core[None] @ rot + poses[:, None, :2]  # (B, K, 2)
+    return pts.min(1) - r, pts.max(1) + r
+
+
 def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
     """The bound the placed footprint touches (``"x >= -0.6"``), or None."""
-    core, r = footprint_core(obj)
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    pts = core @ np.array([[c, s], [-s, c]]) + np.asarray(pose[:2])
-    lo, hi = pts.min(0) - r, pts.max(0) + r
+    lo, hi = (v[0] for v in _extents(obj, np.asarray(pose, dtype=float)[None, :3]))
     (x0, y0), (x1, y1) = bounds
     for v, b, name in ((lo[0], x0, f"x >= {x0:g}"), (lo[1], y0, f"y >= {y0:g}")):
         if v <= b + tol:
@@ -142,6 +149,31 @@ def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: fl
         if v >= b - tol:
             return name
     return None
+
+
+def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses: np.ndarray) -> np.ndarray:
+    """Rows of ``poses (B, N, 3)`` that put an object of ``names`` where the data never had one of its
+    category: pinned at a bound that none touches, or farther from every other object than any
+    (:func:`assess`'s ``bound`` and ``far`` flags, for a whole population): ``(B,)`` bool."""
+    out = np.zeros(len(poses), dtype=bool)
+    tol = BOUND_TOL * ref.length_scale
+    (x0, y0), (x1, y1) = scene.bounds
+    for name in names:
+        i = scene.index(name)
+        o = scene.objects[i]
+        if o.category not in ref.touches_bounds:
+            lo, hi = _extents(o, poses[:, i])
+            out |= (
+                (lo[:, 0] <= x0 + tol)
+                | (lo[:, 1] <= y0 + tol)
+                | (hi[:, 0] >= x1 - tol)
+                | (hi[:, 1] >= y1 - tol)
+            )
+        far = ref.nearest.get(o.category, ref.nearest_any)
+        if far > 0 and len(scene) > 1:
+            d = np.linalg.norm(np.delete(poses[:, :, :2], i, axis=1) - poses[:, i : i + 1, :2], axis=-1)
+            out |= d.min(axis=1) / ref.length_scale > FAR_FACTOR * far
+    return out
 
 
 def overlapping_categories(scenes: Sequence[Scene], tol: float) -> list[list[str]]:

@@ -45,7 +45,7 @@ from ..costs import ConstraintCost
 from ..errors import ConfigError, check_number
 from ..problem import FEASIBILITY_TOL, Problem
 from .base import StageSolver, start_poses, threads_for
-from .result import Result, Status, make_result
+from .result import Result, Status, best_first, make_result
 
 __all__ = ["ALMOptions", "ALMSolver", "ParticleStatus"]
 
@@ -368,7 +368,7 @@ class ALMSolver(StageSolver):
         with torch.no_grad():
             cost = problem.evaluate(x)
         feasible = viol <= o.tolerance
-        order = _best_first(feasible, cost)
+        order = best_first(feasible, cost)
         x, viol, cost = x[order], viol[order], cost[order]
         status = [status[int(k)] for k in order]
         t2 = time.perf_counter()
@@ -391,10 +391,3 @@ class ALMSolver(StageSolver):
             tol=o.tolerance,
         )
         return r
-
-
-def _best_first(feasible: Tensor, cost: Tensor) -> Tensor:
-    """The order ``(B,)`` that puts feasible particles first, each group by cost (a stable sort)."""
-    key = torch.where(torch.isfinite(cost), cost, torch.full_like(cost, float("inf")))
-    by_cost = torch.argsort(key, stable=True)
-    return by_cost[torch.argsort((~feasible[by_cost]).to(torch.int8), stable=True)]

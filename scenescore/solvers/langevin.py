@@ -4,7 +4,10 @@ Particles start uniformly inside the bounds, the best ``particles`` of ``candida
 by cost when ``candidates`` is set, or from ``init``; every step is followed by the
 closed-form projections of the cost's constraints (bounds with the footprint's extent, reach) and,
 with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
-is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost.
+is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost;
+with ``trusted_first`` (placement's default), in each group a particle that puts an object where its
+learned energy's data never had one (at a bound none touches, or far from the rest:
+:meth:`~scenescore.problem.Problem.untrusted`) comes after those that do not.
 
 With ``resample=k`` the particles are a population: ``k`` times during the chain they are resampled
 by ``softmax(-cost / temperature)``, so particles stuck in high-cost basins are replaced by copies of
@@ -31,7 +34,7 @@ from ..problem import FEASIBILITY_TOL, Problem, ProblemError
 from ..sampling import SAMPLING, LangevinConfig, langevin, screen
 from .base import StageSolver, threads_for, torch_threads
 from .projection import LinearisedProjection
-from .result import Result, Status, make_result
+from .result import Result, Status, best_first, make_result
 
 MAX_PARTICLES = 65_536  # more is a typo, not a plan: memory grows with particles x objects^2
 MAX_CANDIDATES = 1_000_000
@@ -58,6 +61,11 @@ class LangevinOptions:
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
     threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
     chain: LangevinConfig = SAMPLING
+    # the answer: among the feasible particles (else all), those that the learned energy's data supports
+    # first (Problem.untrusted: no object at a bound its category never touches, or farther from the rest
+    # than any of its category), then by cost; placement's default (off for solve: a user's own costs
+    # may well ask for a wall)
+    trusted_first: bool = False
 
     def __post_init__(self) -> None:
         if self.projection not in ("none", "closed_form", "qp"):
@@ -68,6 +76,8 @@ class LangevinOptions:
         check_number("langevin", "candidates", self.candidates, 0, MAX_CANDIDATES, integer=True)
         if self.threads is not None:
             check_number("langevin", "threads", self.threads, 1, 1024, integer=True)
+        if not isinstance(self.trusted_first, bool):
+            raise ConfigError(f"langevin: trusted_first: expected true or false, got {self.trusted_first!r}")
         if not isinstance(self.chain, LangevinConfig):
             raise ConfigError(f"langevin: chain: expected a LangevinConfig, got {type(self.chain).__name__}")
 
@@ -196,11 +206,21 @@ class LangevinSolver(StageSolver):
             with torch.no_grad():
                 viol = p.violation(xs)
             ok = viol <= FEASIBILITY_TOL
-            best = int(torch.argmin(torch.where(ok, es, es + 1e12 + viol)))  # feasible first, then by cost
-            msg = f"{int(ok.sum())} of {len(es)} particles within the violation tolerance"
+            trusted = ~p.untrusted(xs) if o.trusted_first else None
+            best = int(best_first(ok, torch.where(ok, es, es + viol), trusted)[0])
+            notes = (
+                [] if ok[best] else [f"{int(ok.sum())} of {len(es)} particles within the violation tolerance"]
+            )
+
+            if trusted is not None and not trusted.all():
+                notes.append(
+                    f"{int((~trusted).sum())} of {len(es)} particles put an object where its data has none "
+                    "(at a bound, or far from the rest)"
+                    + ("" if trusted[best] else ", the answer among them")
+                )
             qp = qps[k]
-            if qp is not None:
-                msg += f"; {qp.qp_solves} projection QPs"
+            if qp is not None and notes:
+                notes.append(f"{qp.qp_solves} projection QPs")
             out.append(
                 make_result(
                     p,
@@ -210,7 +230,7 @@ class LangevinSolver(StageSolver):
                     cfg.steps + cfg.final_descent,
                     (t1 - t0) / len(problems),
                     (t2 - t1) / len(problems),
-                    message=msg if not ok[best] else "",
+                    message="; ".join(notes),
                     samples=xs,
                     sample_costs=es,
                 )

@@ -11,12 +11,13 @@ from typing import Any, cast
 
 import numpy as np
 import torch
+from torch import Tensor
 
 from ..models.trust import Assessment
 from ..problem import FEASIBILITY_TOL, Problem
 from ..scene import Scene, atomic_write_text
 
-__all__ = ["Result", "Status", "make_result"]
+__all__ = ["Result", "Status", "make_result", "best_first"]
 
 
 class Status(StrEnum):
@@ -145,6 +146,18 @@ class Result:
         if path is not None:
             atomic_write_text(path, text + "\n")
         return text
+
+
+def best_first(feasible: Tensor, cost: Tensor, trusted: Tensor | None = None) -> Tensor:
+    """The order ``(B,)`` of a population: feasible rows first, then (given ``trusted``) within each group
+    the trusted rows (:meth:`~scenescore.problem.Problem.untrusted`), every group by ``cost`` (not finite:
+    last; a stable sort)."""
+    key = torch.where(torch.isfinite(cost), cost, torch.full_like(cost, float("inf")))
+    order = torch.argsort(key, stable=True)
+    group = 2 * (~feasible[order]).to(torch.int8)
+    if trusted is not None:
+        group = group + (~trusted[order]).to(torch.int8)
+    return order[torch.argsort(group, stable=True)]
 
 
 def _num(v: float | None) -> float | None:

@@ -79,3 +79,58 @@ def test_energy_beyond_the_reference_is_flagged(dining):
     # a reference that round-trips through a checkpoint's JSON is the same reference
     assert TrustReference.from_dict(ref.to_dict()) == ref
     assert np.isfinite(ref.energy_limit)
+
+
+def test_outside_data_agrees_with_the_bound_and_far_flags(dining):
+    """The batched check marks exactly the rows in which the one-pose check flags the object ``bound`` or
+    ``far``."""
+    from scenescore.models.trust import outside_data
+
+    model, _, te = dining
+    s, rng = te[0], np.random.default_rng(0)
+    (x0, y0), (x1, y1) = s.bounds
+    poses = np.repeat(s.poses()[None], 48, axis=0)
+    i = s.index("plate_0")
+    poses[:, i, 0] = rng.uniform(x0, x1, 48)
+    poses[:, i, 1] = rng.uniform(y0, y1, 48)
+    poses[:, i, 2] = rng.uniform(-np.pi, np.pi, 48)
+    rows = outside_data(model.trust, s, ["plate_0"], poses)
+    flags = [assess(model.trust, model, s.with_poses(p), ["plate_0"])["plate_0"].flags for p in poses]
+    want = [any(f.startswith(("bound:", "far:")) for f in fl) for fl in flags]
+    assert rows.tolist() == want and 0 < sum(want) < 48
+    assert any(f.startswith("bound:") for fl in flags for f in fl)
+    # a category that touches a bound in the data, and may lie anywhere, is never outside it
+    ref = replace(model.trust, touches_bounds=["plate"], nearest={**model.trust.nearest, "plate": 1e9})
+    assert not outside_data(ref, s, ["plate_0"], poses).any()
+
+
+def test_trusted_first_prefers_a_particle_off_the_bounds(dining):
+    """A cost that pulls the bowl into a corner: ``trusted_first`` answers with the best particle that no
+    bound pins, and says how many were pinned; without it the corner wins, flagged."""
+    model, _, te = dining
+    s = te[0].without("bowl_0")
+    (x0, y0), (x1, y1) = s.bounds
+    cost = ss.costs.LearnedEnergy(model) + 10.0 * ss.costs.PoseTarget("bowl_0", (x1, y1))
+    problem = ss.Problem(s, cost)
+    opts = {"particles": 16, "steps": 20}
+    plain = ss.solve(problem, "langevin", seed=0, options={"langevin": opts})
+    first = ss.solve(problem, "langevin", seed=0, options={"langevin": {**opts, "trusted_first": True}})
+    assert any(f.startswith("bound:") for f in plain.confidence["bowl_0"].flags)
+    assert not any(f.startswith("bound:") for f in first.confidence["bowl_0"].flags)
+    assert first.objective >= plain.objective  # it gave up cost to stay where the data has bowls
+    # the same population either way: only the answer differs
+    assert np.array_equal(plain.samples, first.samples)
+    pinned = problem.untrusted(torch.as_tensor(first.samples))
+    assert 0 < int(pinned.sum()) < 16 and bool(pinned[int(np.argmin(first.sample_costs))])
+    assert f"{int(pinned.sum())} of 16 particles put an object where its data has none" in first.message
+    assert not plain.message
+
+
+def test_best_first_orders_feasible_then_trusted_then_cost():
+    from scenescore.solvers.result import best_first
+
+    feasible = torch.tensor([True, True, False, True, False])
+    trusted = torch.tensor([False, True, True, True, True])
+    cost = torch.tensor([0.0, 3.0, -5.0, float("nan"), 1.0])
+    assert best_first(feasible, cost, trusted).tolist() == [1, 3, 0, 2, 4]
+    assert best_first(feasible, cost).tolist() == [0, 1, 3, 2, 4]
