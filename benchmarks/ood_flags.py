@@ -83,9 +83,7 @@ def main(argv: list[str] | None = None) -> None:
         odd = ss.SceneObject("novel_0", "anvil", size, None, color=colour)  # type: ignore[arg-type]
         truth = c.scene.with_poses([c.truth], [c.name])
         scenes.append(ss.Scene([*truth.objects, odd], truth.bounds))
-    out = place_many(model, scenes[:8], None, args.seed) + place_many(
-        model, scenes[8:], None, args.seed + 8
-    )
+    out = place_many(model, scenes[:8], None, args.seed) + place_many(model, scenes[8:], None, args.seed + 8)
     rows.append(("a novel object", len(out), sum(bool(p.meta["placement"]["novel_0"]["flags"]) for p in out)))
 
     print(
