@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
@@ -238,25 +238,25 @@ class _BySize:
         for a, b in zip([0, *cuts[:-1]], cuts):
             self.groups.append((order[a:b], c[order[b - 1]]))
 
-    def rows(self, scenes: list[int], k: int) -> torch.Tensor:
-        """The pose-set rows of ``scenes`` (positions in the batch) with ``k`` rows each."""
-        return torch.tensor([i * k + j for i in scenes for j in range(k)], dtype=torch.long)
-
-    def energy(self, model: ScoreModel, poses: torch.Tensor, st: SceneTensors, k: int = 1) -> torch.Tensor:
-        """``model.energy(poses, st)`` for ``k`` rows per scene: ``(S * k,)``."""
+    def bound(
+        self, model: ScoreModel, st: SceneTensors, k: int = 1
+    ) -> Callable[[torch.Tensor], torch.Tensor]:
+        """``poses (S * k, N, 3) -> model.energy(poses, st)`` for ``k`` rows per scene, each group's rows and
+        cropped tensors made once (the chain calls it at every step)."""
         if len(self.groups) == 1:
-            return model.energy(poses, st)
-        parts, idx = [], []
+            return lambda poses: model.energy(poses, st)
+        parts = []
         for scenes, n in self.groups:
-            r = self.rows(scenes, k).to(poses.device)
-            sub = SceneTensors(*(getattr(st, f)[r] for f in st.__dataclass_fields__))
-            sub = _cropped(sub, n)
-            parts.append(model.energy(poses[r, :n], sub))
-            idx.append(r)
-        out = torch.cat(parts)
-        inverse = torch.empty_like(torch.cat(idx))
-        inverse[torch.cat(idx)] = torch.arange(len(inverse), device=inverse.device)
-        return out[inverse]
+            r = torch.tensor([i * k + j for i in scenes for j in range(k)], device=st.poses.device)
+            parts.append((r, n, _cropped(st.index(r), n)))
+        order = torch.cat([r for r, _, _ in parts])
+        inverse = torch.empty_like(order)
+        inverse[order] = torch.arange(len(order), device=order.device)
+
+        def energy(poses: torch.Tensor) -> torch.Tensor:
+            return torch.cat([model.energy(poses[r, :n], sub) for r, n, sub in parts])[inverse]
+
+        return energy
 
 
 def _cropped(st: SceneTensors, n: int) -> SceneTensors:
@@ -507,9 +507,7 @@ def _train(
             init = buf.poses[rows].reshape(bs * k, *buf.poses.shape[2:])
             movable = buf.movable[rows].reshape(bs * k, -1)
 
-            def energy(x: torch.Tensor, rep: SceneTensors = rep, sizes: _BySize = sizes) -> torch.Tensor:
-                return sizes.energy(model, x, rep, k)
-
+            energy = sizes.bound(model, rep, k)
             age = buf.age[rows].reshape(-1)
             neg, _ = langevin(
                 energy, init, movable, rep.lo, rep.hi, chain_cfg, gen, age=age, run_steps=cfg.chain_steps
@@ -517,11 +515,11 @@ def _train(
             buf.poses[rows] = neg.reshape(bs, k, *neg.shape[1:])
             buf.age[rows] += cfg.chain_steps
             model.net.train()
-            e_pos = sizes.energy(model, batch.poses, batch)
-            e_neg = sizes.energy(model, neg, rep, k).reshape(bs, k)
+            e_pos = sizes.bound(model, batch)(batch.poses)
+            e_neg = energy(neg).reshape(bs, k)
             if cfg.perturbed:
                 pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
-                e_pert = sizes.energy(model, pert, batch.repeat(cfg.perturbed), cfg.perturbed)
+                e_pert = sizes.bound(model, batch.repeat(cfg.perturbed), cfg.perturbed)(pert)
                 e_pert = e_pert.reshape(bs, cfg.perturbed)
                 e_neg = torch.cat([e_neg, e_pert], dim=1)
             loss = infonce = infonce_loss(e_pos, e_neg)

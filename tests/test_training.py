@@ -135,11 +135,11 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     k = 3
     rep = st.repeat(k)
     x = rep.poses + 0.01 * torch.randn(rep.poses.shape, generator=torch.Generator().manual_seed(0))
-    padded, grouped = model.energy(x, rep), by.energy(model, x, rep, k)
+    padded, grouped = model.energy(x, rep), by.bound(model, rep, k)(x)
     assert torch.allclose(padded, grouped, rtol=1e-5, atol=1e-5)
     w = model.net.layers[0].w_i.weight
     (g1,) = torch.autograd.grad(padded.sum(), w)
-    (g2,) = torch.autograd.grad(by.energy(model, x, rep, k).sum(), w)
+    (g2,) = torch.autograd.grad(by.bound(model, rep, k)(x).sum(), w)
     assert torch.allclose(g1, g2, rtol=1e-4, atol=1e-5 * float(g1.abs().max()))
     # one size, or grouping turned off: one group; the cuts minimise the padded edges
     assert len(_BySize(torch.tensor([6, 6, 6, 6])).groups) == 1

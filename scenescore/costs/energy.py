@@ -95,13 +95,16 @@ class LearnedEnergy(Cost):
 
         return fn
 
+    def _moving(self) -> list[str]:
+        """The names of the movable objects that the energy sees."""
+        return [self.binding.scene.names[i] for i in self.visible if self.binding.movable[i]]
+
     def assess(self, poses: np.ndarray) -> dict[str, Assessment]:
         """Confidence and flags of the moving objects the energy sees, against the model's trust reference."""
         ref = self.model.trust
         if ref is None or self.visible_scene is None:
             return {}
-        vis = self.visible
-        moving = [self.binding.scene.names[i] for i in vis if self.binding.movable[i]]
+        vis, moving = self.visible, self._moving()
         if not moving:
             return {}
         scene = self.visible_scene.with_poses(np.asarray(poses)[vis])
@@ -114,11 +117,10 @@ class LearnedEnergy(Cost):
         ref = self.model.trust
         if ref is None or self.visible_scene is None:
             return None
-        scene, vis = self.binding.scene, self.visible
-        moving = [scene.names[i] for i in vis if self.binding.movable[i]]
+        moving = self._moving()
         if not moving:
             return None
-        x = poses.detach()[:, vis].to("cpu", torch.float64).numpy()
+        x = poses.detach()[:, self.visible].to("cpu", torch.float64).numpy()
         return torch.as_tensor(outside_data(ref, self.visible_scene, moving, x), device=poses.device)
 
     def evaluate(self, poses: Tensor) -> Tensor:

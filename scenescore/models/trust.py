@@ -138,17 +138,24 @@ def _extents(obj: SceneObject, poses: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return pts.min(1) - r, pts.max(1) + r
 
 
+def _bounds_touched(
+    obj: SceneObject, poses: np.ndarray, bounds: Any, tol: float
+) -> tuple[list[str], np.ndarray]:
+    """The bounds' four sides by name (``"x >= -0.6"``, ...) and which of them ``obj``'s footprint touches
+    at each pose of ``poses (B, 3)``: ``(B, 4)`` bool."""
+    lo, hi = _extents(obj, poses)
+    (x0, y0), (x1, y1) = bounds
+    names = [f"x >= {x0:g}", f"y >= {y0:g}", f"x <= {x1:g}", f"y <= {y1:g}"]
+    hit = np.stack(
+        [lo[:, 0] <= x0 + tol, lo[:, 1] <= y0 + tol, hi[:, 0] >= x1 - tol, hi[:, 1] >= y1 - tol], 1
+    )
+    return names, hit
+
+
 def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
     """The bound the placed footprint touches (``"x >= -0.6"``), or None."""
-    lo, hi = (v[0] for v in _extents(obj, np.asarray(pose, dtype=float)[None, :3]))
-    (x0, y0), (x1, y1) = bounds
-    for v, b, name in ((lo[0], x0, f"x >= {x0:g}"), (lo[1], y0, f"y >= {y0:g}")):
-        if v <= b + tol:
-            return name
-    for v, b, name in ((hi[0], x1, f"x <= {x1:g}"), (hi[1], y1, f"y <= {y1:g}")):
-        if v >= b - tol:
-            return name
-    return None
+    names, hit = _bounds_touched(obj, np.asarray(pose, dtype=float)[None, :3], bounds, tol)
+    return next((n for n, h in zip(names, hit[0]) if h), None)
 
 
 def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses: np.ndarray) -> np.ndarray:
@@ -157,18 +164,11 @@ def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses:
     (:func:`assess`'s ``bound`` and ``far`` flags, for a whole population): ``(B,)`` bool."""
     out = np.zeros(len(poses), dtype=bool)
     tol = BOUND_TOL * ref.length_scale
-    (x0, y0), (x1, y1) = scene.bounds
     for name in names:
         i = scene.index(name)
         o = scene.objects[i]
         if o.category not in ref.touches_bounds:
-            lo, hi = _extents(o, poses[:, i])
-            out |= (
-                (lo[:, 0] <= x0 + tol)
-                | (lo[:, 1] <= y0 + tol)
-                | (hi[:, 0] >= x1 - tol)
-                | (hi[:, 1] >= y1 - tol)
-            )
+            out |= _bounds_touched(o, poses[:, i], scene.bounds, tol)[1].any(axis=1)
         far = ref.nearest.get(o.category, ref.nearest_any)
         if far > 0 and len(scene) > 1:
             d = np.linalg.norm(np.delete(poses[:, :, :2], i, axis=1) - poses[:, i : i + 1, :2], axis=-1)

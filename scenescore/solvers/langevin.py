@@ -211,7 +211,6 @@ class LangevinSolver(StageSolver):
             notes = (
                 [] if ok[best] else [f"{int(ok.sum())} of {len(es)} particles within the violation tolerance"]
             )
-
             if trusted is not None and not trusted.all():
                 notes.append(
                     f"{int((~trusted).sum())} of {len(es)} particles put an object where its data has none "
