@@ -26,7 +26,9 @@ from .scene import Scene, SceneObject
 
 __all__ = [
     "Footprints",
+    "compose_poses",
     "footprint_core",
+    "relative_poses",
     "signed_distance",
     "signed_distance_placed",
     "signed_distance_reference",
@@ -34,6 +36,21 @@ __all__ = [
 ]
 
 _BIG = 1e9
+
+
+def compose_poses(a: Tensor, b: Tensor) -> Tensor:
+    """Poses ``a * b`` (``b`` in ``a``'s frame), ``(..., 3)``."""
+    c, s = torch.cos(a[..., 2]), torch.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return torch.stack([x, y, a[..., 2] + b[..., 2]], dim=-1)
+
+
+def relative_poses(a: Tensor, b: Tensor) -> Tensor:
+    """Pose of ``b`` in ``a``'s frame, ``(..., 3)``."""
+    c, s = torch.cos(a[..., 2]), torch.sin(a[..., 2])
+    dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    return torch.stack([c * dx + s * dy, -s * dx + c * dy, b[..., 2] - a[..., 2]], dim=-1)
 
 
 def footprint_core(obj: SceneObject) -> tuple[np.ndarray, float]:

@@ -27,6 +27,7 @@ from tqdm.auto import tqdm
 from .devices import draw, generator, resolve_device
 from .encoders import Encoder, FootprintEncoder
 from .errors import ConfigError, check_number
+from .geometry import compose_poses, relative_poses
 from .models import SceneTensors, ScoreModel
 from .models.trust import reference, touching_bound
 from .sampling import TRAINING, LangevinConfig, langevin, uniform_init
@@ -67,6 +68,14 @@ class TrainConfig:
         2.0,
     )  # log-uniform range of the position noise's std (length scales)
     perturb_angle: tuple[float, float] = (0.03, 1.5)  # log-uniform range of the angle noise's std (rad)
+    # extra counter-examples: one movable object put at the pose relative to another object (not its
+    # nearest) that it has to its nearest neighbour: a relation of the data on the wrong anchor (a book at
+    # the row's far end instead of its place in the row)
+    reanchored: int = 8
+    # fraction of restarted chains that start from such a pose (one object on the wrong anchor, it alone
+    # moving) halfway through their schedule, instead of from uniform: the chain relaxes it into the
+    # nearest hard counter-example (flush to the wall, at the row's far end)
+    reanchor_restart: float = 0.5
     # noise on every node input, fresh per object and iteration, so that the energy leans on geometry more
     # than on exact features, which carries it to objects it never saw (Table 2): Gaussian noise of std
     # feature_noise on the encoder's vector, and of std size_noise length scales on the scale descriptor
@@ -110,9 +119,10 @@ class TrainConfig:
         for name in ("batch_scenes", "negatives", "chain_steps"):
             check_number(own, name, getattr(self, name), 1, 100_000, integer=True)
         check_number(own, "perturbed", self.perturbed, 0, 100_000, integer=True)
+        check_number(own, "reanchored", self.reanchored, 0, 100_000, integer=True)
         if self.edge_encoder is not None:
             check_number(own, "edge_encoder", self.edge_encoder, 1, 8192, integer=True)
-        for name in ("restart", "full_fraction", "single_fraction"):
+        for name in ("restart", "full_fraction", "single_fraction", "reanchor_restart"):
             check_number(own, name, getattr(self, name), 0, 1)
         if self.full_fraction + self.single_fraction > 1:
             raise ConfigError(
@@ -143,11 +153,14 @@ class TrainConfig:
         return asdict(self)
 
 
-#: the network without its edge encoder, with the feature noise it was trained with as the default (before
-#: the encoder became the default): ``TrainConfig(**RAW_EDGES)``
+#: the network without its edge encoder, trained as the default was before the encoder (its feature
+#: noise, no re-anchored counter-examples): ``TrainConfig(**RAW_EDGES)``
 RAW_EDGES: Mapping[str, Any] = MappingProxyType(
-    {"edge_encoder": None, "feature_noise": 0.3, "size_noise": 0.0}
+    {"edge_encoder": None, "feature_noise": 0.3, "size_noise": 0.0, "reanchored": 0, "reanchor_restart": 0.0}
 )
+
+
+_ABSENT = 1e4  # the energy given to a counter-example that is not there: its softmax weight is 0
 
 
 def infonce_loss(e_pos: torch.Tensor, e_neg: torch.Tensor) -> torch.Tensor:
@@ -212,6 +225,34 @@ def perturbed_negatives(
     x[rows, pick] = x[rows, pick] + noise.to(x.dtype)
     x[..., :2] = torch.minimum(torch.maximum(x[..., :2], rep.lo[:, None]), rep.hi[:, None])
     return x
+
+
+def reanchored_negatives(
+    batch: SceneTensors, k: int, gen: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``k`` copies of each true scene with one movable object ``i`` moved to the pose relative to another
+    object ``j`` that it has to its nearest neighbour: ``(poses (B * k, N, 3), valid (B * k,))``; a copy
+    of a scene with fewer than three objects is the scene itself, and not valid."""
+    rep = batch.repeat(k)
+    m, n = rep.mask.shape
+    dev = rep.poses.device
+    rows = torch.arange(m, device=dev)
+    x = rep.poses.clone()
+    real = rep.mask & ~rep.fixed
+    i = draw("rand", (m, n), gen, dev).masked_fill(~real, 2.0).argmin(dim=1)  # (M,)
+    d = (x[..., :2] - x[rows, i, None, :2]).norm(dim=-1)  # (M, N): from i
+    d = d.masked_fill(~rep.mask, math.inf)
+    d[rows, i] = math.inf
+    near = d.argmin(dim=1)  # (M,)
+    other = rep.mask.clone()
+    other[rows, i] = False
+    other[rows, near] = False
+    j = draw("rand", (m, n), gen, dev).masked_fill(~other, 2.0).argmin(dim=1)
+    valid = real.any(dim=1) & other.any(dim=1)
+    moved = compose_poses(x[rows, j], relative_poses(x[rows, near], x[rows, i]))
+    moved[:, :2] = torch.minimum(torch.maximum(moved[:, :2], rep.lo), rep.hi)
+    x[rows, i] = torch.where(valid[:, None], moved, x[rows, i])
+    return x, valid
 
 
 class _BySize:
@@ -332,9 +373,18 @@ class _ChainBuffer:
             dtype=self.poses.dtype,
         )
         true = self.data.poses[rows]
-        self.poses[rows, cols] = torch.where(masks[..., None], init, true)
+        init = torch.where(masks[..., None], init, true)
+        age = torch.zeros(len(rows), dtype=torch.long, device=self.device)
+        if self.cfg.reanchor_restart:
+            moved, valid = reanchored_negatives(self.data.index(rows), 1, self.gen)
+            take = valid & (draw("rand", (len(rows),), self.gen, self.device) < self.cfg.reanchor_restart)
+            one = (moved != true).any(dim=-1)  # (M, N): the object moved
+            init = torch.where(take[:, None, None], moved, init)
+            masks = torch.where(take[:, None], one, masks)
+            age = age.masked_fill(take, self.cfg.chain.steps // 2)
+        self.poses[rows, cols] = init
         self.movable[rows, cols] = masks
-        self.age[rows, cols] = 0
+        self.age[rows, cols] = age
 
 
 TENSORBOARD_EXTRA = "TensorBoard logging needs the 'tensorboard' extra: pip install -e '.[tensorboard]'"
@@ -522,9 +572,16 @@ def _train(
                 e_pert = sizes.bound(model, batch.repeat(cfg.perturbed), cfg.perturbed)(pert)
                 e_pert = e_pert.reshape(bs, cfg.perturbed)
                 e_neg = torch.cat([e_neg, e_pert], dim=1)
+            e_real = e_neg.flatten()  # the counter-examples that are there, for the energies' L2
+            if cfg.reanchored:
+                moved, valid = reanchored_negatives(batch, cfg.reanchored, gen)
+                e_move = sizes.bound(model, batch.repeat(cfg.reanchored), cfg.reanchored)(moved)
+                e_move, valid = e_move.reshape(bs, cfg.reanchored), valid.reshape(bs, cfg.reanchored)
+                e_neg = torch.cat([e_neg, e_move.masked_fill(~valid, _ABSENT)], dim=1)
+                e_real = torch.cat([e_real, e_move[valid]])
             loss = infonce = infonce_loss(e_pos, e_neg)
             if cfg.energy_reg:
-                loss = loss + cfg.energy_reg * (e_pos.pow(2).mean() + e_neg.pow(2).mean())
+                loss = loss + cfg.energy_reg * (e_pos.pow(2).mean() + e_real.pow(2).mean())
             if cfg.grad_penalty:
                 x = neg.detach().requires_grad_(True)
                 (g,) = torch.autograd.grad(model.energy(x, rep).sum(), x, create_graph=True)
@@ -552,7 +609,7 @@ def _train(
         "seed": seed,
         "scenes": s_count,
         "final_loss": float(sum(history[-50:]) / max(len(history[-50:]), 1)),
-        "chance_loss": math.log(k + cfg.perturbed + 1),
+        "chance_loss": math.log(k + cfg.perturbed + cfg.reanchored + 1),
         "seconds": round(time.perf_counter() - t0, 2),
         # the learning curve: the mean loss over each block of 10 iterations
         "history": [

@@ -10,7 +10,7 @@ import torch
 from shapely.geometry import MultiPoint, Point
 
 from scenescore.exact import collides, fcl_signed_distance, shapely_core
-from scenescore.geometry import Footprints, footprint_core, signed_distance
+from scenescore.geometry import Footprints, compose_poses, footprint_core, relative_poses, signed_distance
 from scenescore.scene import Scene, SceneObject
 
 
@@ -143,3 +143,14 @@ def test_split_kernel_equals_the_plain_reference():
         assert torch.equal(out[0][0], out[1][0])
         tol = 1e-12 if dtype == torch.float64 else 1e-5
         assert torch.allclose(out[0][1], out[1][1], rtol=tol, atol=tol)
+
+
+def test_relative_poses_undo_compose_poses():
+    g = torch.Generator().manual_seed(0)
+    a = torch.rand(7, 3, generator=g, dtype=torch.float64) * 4 - 2
+    b = torch.rand(7, 3, generator=g, dtype=torch.float64) * 4 - 2
+    assert torch.allclose(relative_poses(a, compose_poses(a, b)), b, atol=1e-12)
+    # a point ahead of a pose turned a quarter: (1, 0) in its frame is (0, 1) in the world's
+    q = torch.tensor([0.5, -0.5, math.pi / 2], dtype=torch.float64)
+    got = compose_poses(q, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64))
+    assert torch.allclose(got, torch.tensor([0.5, 0.5, math.pi / 2], dtype=torch.float64), atol=1e-12)

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from scenescore import Scene, SceneObject
+from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
 from scenescore.placement import PLACE as PLACE_DEFAULT
 from scenescore.placement import place
@@ -147,3 +148,66 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     with pytest.raises(ConfigError, match="group_sizes"):
         TrainConfig(group_sizes="yes")  # type: ignore[arg-type]
     assert _best_cuts([2, 2, 10, 10], 4) in ([2, 4], [1, 2, 3, 4], [2, 3, 4], [1, 2, 4])
+
+
+def _row(n: int = 4) -> Scene:
+    """Books in a row along x, each 0.05 m after the last, headings along y."""
+    objs = [
+        SceneObject(f"b{k}", "book", (0.2, 0.04), (0.05 * k, 0.1, math.pi / 2), (200, 30, 30))
+        for k in range(n)
+    ]
+    return Scene(objs, bounds=((-0.5, -0.3), (0.5, 0.3)))
+
+
+def test_reanchored_negatives_move_one_object_next_to_another_anchor():
+    from scenescore.models import ScoreModel
+    from scenescore.training import reanchored_negatives
+
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    st = model.tensors([_row()])
+    x, valid = reanchored_negatives(st, 12, torch.Generator().manual_seed(0))
+    assert x.shape == (12, 4, 3) and bool(valid.all())
+    truth = st.poses[0]
+    for row in x:
+        moved = (row - truth).abs().sum(dim=-1) > 1e-9
+        assert int(moved.sum()) == 1  # one object, the rest where they were
+        i = int(moved.nonzero())
+        # its offset to some other object is the 0.05 m step it had to its nearest neighbour, and that
+        # object is not the neighbour it had (nor does the object keep its place)
+        steps = (row[:, :2] - row[i, :2]).norm(dim=-1)
+        assert torch.isclose(steps, torch.tensor(0.05), atol=1e-6).any()
+        assert row[i, 2] == pytest.approx(math.pi / 2)
+    pair = model.tensors([Scene(_row(2).objects, bounds=((-0.5, -0.3), (0.5, 0.3)))])
+    same, ok = reanchored_negatives(pair, 3, torch.Generator().manual_seed(0))
+    assert not bool(ok.any()) and torch.equal(same, pair.repeat(3).poses)  # no third object to anchor to
+
+
+def test_reanchored_counter_examples_are_seeded_and_change_training():
+    torch.set_num_threads(1)
+    scenes = [_row(4) for _ in range(4)]
+    cfg = TrainConfig(iterations=4, batch_scenes=4, negatives=4, model={"hidden": 16, "layers": 1})
+    a, b = (train(scenes, replace(cfg, reanchored=3), seed=2, progress=False) for _ in range(2))
+    c = train(scenes, replace(cfg, reanchored=0), seed=2, progress=False)
+    pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
+    assert torch.equal(pa, pb) and not torch.equal(pa, pc)
+    assert a.info["chance_loss"] == pytest.approx(math.log(4 + 3 + 1))
+    with pytest.raises(ConfigError, match="reanchored"):
+        TrainConfig(reanchored=-1)
+
+
+def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
+    from scenescore.models import ScoreModel
+    from scenescore.training import _ChainBuffer
+
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    data = model.tensors([_row(5)] * 2)
+    cfg = TrainConfig(reanchor_restart=1.0)
+    buf = _ChainBuffer(data, 6, cfg, torch.Generator().manual_seed(0))
+    moved = (buf.poses != data.poses[:, None]).any(dim=-1)  # (S, K, N)
+    assert torch.equal(moved, buf.movable)  # the object put on another anchor, and it alone, moves
+    assert bool((moved.sum(dim=-1) == 1).all())
+    assert bool((buf.age == cfg.chain.steps // 2).all())  # halfway through the schedule
+    plain = _ChainBuffer(data, 6, TrainConfig(reanchor_restart=0.0), torch.Generator().manual_seed(0))
+    assert bool((plain.age == 0).all()) and int(plain.movable.sum(dim=-1).max()) > 1
+    with pytest.raises(ConfigError, match="reanchor_restart"):
+        TrainConfig(reanchor_restart=1.5)

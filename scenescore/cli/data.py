@@ -57,8 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--raw-edges",
         action="store_true",
-        help="no edge encoder: the message layers read the raw relative poses, with the feature noise of "
-        "the earlier default (better on Table 2's ordered rows, worse on larger rooms)",
+        help="no edge encoder: the message layers read the raw relative poses, trained as the earlier "
+        "default was (its feature noise, no re-anchored counter-examples; better on Table 2's ordered "
+        "rows, worse on larger rooms)",
     )
     p.add_argument(
         "--encoder",
