@@ -231,8 +231,9 @@ def reanchored_negatives(
     batch: SceneTensors, k: int, gen: torch.Generator
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """``k`` copies of each true scene with one movable object ``i`` moved to the pose relative to another
-    object ``j`` that it has to its nearest neighbour: ``(poses (B * k, N, 3), valid (B * k,))``; a copy
-    of a scene with fewer than three objects is the scene itself, and not valid."""
+    object ``j`` that it has to its nearest neighbour: ``(poses (B * k, N, 3), moved (B * k, N))``, where
+    ``moved`` marks ``i``; a copy of a scene with fewer than three objects (or none movable) is the scene
+    itself, with no object marked."""
     rep = batch.repeat(k)
     m, n = rep.mask.shape
     dev = rep.poses.device
@@ -249,10 +250,12 @@ def reanchored_negatives(
     other[rows, near] = False
     j = draw("rand", (m, n), gen, dev).masked_fill(~other, 2.0).argmin(dim=1)
     valid = real.any(dim=1) & other.any(dim=1)
-    moved = compose_poses(x[rows, j], relative_poses(x[rows, near], x[rows, i]))
-    moved[:, :2] = torch.minimum(torch.maximum(moved[:, :2], rep.lo), rep.hi)
-    x[rows, i] = torch.where(valid[:, None], moved, x[rows, i])
-    return x, valid
+    pose = compose_poses(x[rows, j], relative_poses(x[rows, near], x[rows, i]))
+    pose[:, :2] = torch.minimum(torch.maximum(pose[:, :2], rep.lo), rep.hi)
+    x[rows, i] = torch.where(valid[:, None], pose, x[rows, i])
+    moved = torch.zeros(m, n, dtype=torch.bool, device=dev)
+    moved[rows, i] = valid
+    return x, moved
 
 
 class _BySize:
@@ -376,11 +379,11 @@ class _ChainBuffer:
         init = torch.where(masks[..., None], init, true)
         age = torch.zeros(len(rows), dtype=torch.long, device=self.device)
         if self.cfg.reanchor_restart:
-            moved, valid = reanchored_negatives(self.data.index(rows), 1, self.gen)
-            take = valid & (draw("rand", (len(rows),), self.gen, self.device) < self.cfg.reanchor_restart)
-            one = (moved != true).any(dim=-1)  # (M, N): the object moved
-            init = torch.where(take[:, None, None], moved, init)
-            masks = torch.where(take[:, None], one, masks)
+            poses, moved = reanchored_negatives(self.data.index(rows), 1, self.gen)
+            u = draw("rand", (len(rows),), self.gen, self.device)
+            take = moved.any(dim=1) & (u < self.cfg.reanchor_restart)
+            init = torch.where(take[:, None, None], poses, init)
+            masks = torch.where(take[:, None], moved, masks)
             age = age.masked_fill(take, self.cfg.chain.steps // 2)
         self.poses[rows, cols] = init
         self.movable[rows, cols] = masks
@@ -574,9 +577,12 @@ def _train(
                 e_neg = torch.cat([e_neg, e_pert], dim=1)
             e_real = e_neg.flatten()  # the counter-examples that are there, for the energies' L2
             if cfg.reanchored:
-                moved, valid = reanchored_negatives(batch, cfg.reanchored, gen)
-                e_move = sizes.bound(model, batch.repeat(cfg.reanchored), cfg.reanchored)(moved)
-                e_move, valid = e_move.reshape(bs, cfg.reanchored), valid.reshape(bs, cfg.reanchored)
+                poses, moved = reanchored_negatives(batch, cfg.reanchored, gen)
+                e_move = sizes.bound(model, batch.repeat(cfg.reanchored), cfg.reanchored)(poses)
+                e_move, valid = (
+                    e_move.reshape(bs, cfg.reanchored),
+                    moved.any(dim=1).reshape(bs, cfg.reanchored),
+                )
                 e_neg = torch.cat([e_neg, e_move.masked_fill(~valid, _ABSENT)], dim=1)
                 e_real = torch.cat([e_real, e_move[valid]])
             loss = infonce = infonce_loss(e_pos, e_neg)

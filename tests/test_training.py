@@ -165,12 +165,12 @@ def test_reanchored_negatives_move_one_object_next_to_another_anchor():
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     st = model.tensors([_row()])
-    x, valid = reanchored_negatives(st, 12, torch.Generator().manual_seed(0))
-    assert x.shape == (12, 4, 3) and bool(valid.all())
+    x, marked = reanchored_negatives(st, 12, torch.Generator().manual_seed(0))
+    assert x.shape == (12, 4, 3) and bool((marked.sum(dim=1) == 1).all())
     truth = st.poses[0]
-    for row in x:
+    for row, mark in zip(x, marked):
         moved = (row - truth).abs().sum(dim=-1) > 1e-9
-        assert int(moved.sum()) == 1  # one object, the rest where they were
+        assert torch.equal(moved, mark)  # one object, the one marked; the rest where they were
         i = int(moved.nonzero())
         # its offset to some other object is the 0.05 m step it had to its nearest neighbour, and that
         # object is not the neighbour it had (nor does the object keep its place)
