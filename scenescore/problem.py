@@ -10,6 +10,7 @@ or the ``device`` given; its cost is bound there and its solvers' particles are 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -119,14 +120,27 @@ class Problem:
         """The scene's poses ``(N, 3)`` (unknown ones 0), float64."""
         return torch.tensor(self.scene.poses(), dtype=torch.float64, device=self.device)
 
-    def initial(self, particles: int, generator: torch.Generator, keep_known: bool = False) -> Tensor:
+    def initial(
+        self, particles: int, generator: torch.Generator, keep_known: bool = False, proposals: float = 0.0
+    ) -> Tensor:
         """Initial particles ``(B, N, 3)``: moving objects uniform in the bounds (``keep_known``: only unknown
-        ones), drawn by ``generator`` (best on :attr:`device`; one elsewhere draws there and is copied)."""
+        ones), drawn by ``generator`` (best on :attr:`device`; one elsewhere draws there and is copied).
+        ``proposals``: the fraction of the particles (the first ones) whose moving objects the cost's terms
+        propose instead where they can (:meth:`Cost.propose`: the learned energy's data-like poses beside
+        the known objects), centres kept inside the bounds."""
         x = self.base_poses()[None].repeat(particles, 1, 1)
         u = uniform_init((particles, self.n), self.lo, self.hi, generator, dtype=torch.float64)
         draw = self.movable_mask & (~self.known if keep_known else True)
         mask = torch.as_tensor(draw, device=self.device)[None, :, None]
-        return torch.where(mask, u, x)
+        x = torch.where(mask, u, x)
+        k = round(particles * proposals)
+        if k > 0:
+            y = self.cost.propose(x[:k], generator)
+            if y is not None:
+                xy = torch.minimum(torch.maximum(y[..., :2], self.lo), self.hi)
+                y = torch.cat([xy, torch.remainder(y[..., 2:] + math.pi, 2 * math.pi) - math.pi], dim=-1)
+                x = torch.cat([torch.where(mask, y, x[:k]), x[k:]])
+        return x
 
     def full(self, poses: Tensor | np.ndarray) -> Tensor:
         """Poses as ``(B, N, 3)`` float64 on :attr:`device`; a single ``(N, 3)`` pose set is given a batch of 1.

@@ -146,6 +146,12 @@ class Cost:
         None: no opinion. Solvers rank such rows after the others, before the cost."""
         return None
 
+    def propose(self, x: Tensor, generator: torch.Generator) -> Tensor | None:
+        """Candidate poses: ``x (B, N, 3)`` with some moving objects put where this term expects them
+        (the learned energy: beside the scene's known objects, as its data has them), or None: no
+        proposal. Solvers screen such candidates beside uniform ones (``langevin``'s ``proposals``)."""
+        return None
+
     # -- binding ------------------------------------------------------------------------------------
     def model_device(self) -> torch.device | None:
         """The device of the model this term evaluates (a learned energy's), or None: it has none and
@@ -418,6 +424,13 @@ class Sum(Cost):
         if not flags:
             return None
         return torch.stack(flags, dim=-1).any(-1)
+
+    def propose(self, x: Tensor, generator: torch.Generator) -> Tensor | None:
+        out = None
+        for _, c in self.items:
+            y = c.propose(x if out is None else out, generator)
+            out = y if y is not None else out
+        return out
 
     @property
     def constraint_terms(self) -> list[ConstraintCost]:

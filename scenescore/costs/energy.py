@@ -10,6 +10,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from ..devices import draw
+from ..geometry import compose_poses
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
 from ..models.model import with_walls
@@ -122,6 +124,31 @@ class LearnedEnergy(Cost):
             return None
         x = poses.detach()[:, self.visible].to("cpu", torch.float64).numpy()
         return torch.as_tensor(outside_data(ref, self.visible_scene, moving, x), device=poses.device)
+
+    def propose(self, x: Tensor, generator: torch.Generator) -> Tensor | None:
+        """``x (B, N, 3)`` with each moving object the energy sees put at a pose relative to one of the
+        scene's known visible objects that its data has (:meth:`TrustReference.anchored`, drawn
+        uniformly by ``generator``); None without a reference, a moving object or a known one."""
+        ref = self.model.trust
+        if ref is None or self.visible_scene is None:
+            return None
+        scene, mov = self.binding.scene, self.binding.movable
+        known = [i for i in self.visible if not mov[i]]
+        moving = [i for i in self.visible if mov[i]]
+        if not known or not moving:
+            return None
+        anchors = [scene.objects[i].category for i in known]
+        out = x.clone()
+        for i in moving:
+            idx, rel = ref.anchored(scene.objects[i].category, anchors)
+            if not len(idx):
+                continue
+            u = draw("rand", (x.shape[0],), generator, x.device, torch.float64)
+            pick = (u * len(idx)).long().clamp(max=len(idx) - 1)  # (B,) a relation for each row
+            at = torch.as_tensor(np.asarray(known)[idx], device=x.device)[pick]
+            r = torch.as_tensor(rel, dtype=x.dtype, device=x.device)[pick]
+            out[:, i] = compose_poses(x[torch.arange(x.shape[0], device=x.device), at], r)
+        return out
 
     def evaluate(self, poses: Tensor) -> Tensor:
         dtype = self.model.dtype

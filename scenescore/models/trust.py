@@ -11,6 +11,10 @@ with the reason, when
 - the object is farther from every other object than any object of its category in the data (``far``),
 - it is pinned at a bound that no object of its category touches in the data (``bound``),
 - its category's features are far from every feature seen in training (``novel``).
+
+It also keeps where the training data puts each category relative to each other one
+(:func:`relations`), from which placement draws candidate poses beside the scene's known objects
+(:meth:`TrustReference.anchored`).
 """
 
 from __future__ import annotations
@@ -36,12 +40,17 @@ __all__ = [
     "energy_per_object",
     "overlapping_categories",
     "BOUND_TOL",
+    "relations",
+    "RELATIONS_PER_PAIR",
 ]
 
 BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
 OVERLAP_TOL = 0.1  # length scales of penetration before two objects of the data count as overlapping
 MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
+RELATIONS_PER_PAIR = 32  # relative poses kept per (category, anchor category), evenly subsampled
+MAX_RELATIONS = 4096  # relative poses kept in all (fewer per pair when the pairs are many)
+POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
 
 
 @dataclass
@@ -58,6 +67,34 @@ class TrustReference:
     # category pairs whose footprints overlap somewhere in the data (a lamp on a nightstand): placement's
     # non-overlap leaves them be; None in checkpoints from before it was stored (then no pair is exempt)
     overlaps: list[list[str]] | None = None
+    # category -> anchor category -> poses [x, y, heading] of the category's training objects in the
+    # frame of the anchor's (x, y in length scales): :func:`relations`; None in older checkpoints
+    relations: dict[str, dict[str, list[list[float]]]] | None = None
+
+    def anchored(self, category: str, anchors: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+        """Where the data would put an object of ``category`` beside objects of the categories
+        ``anchors``: ``(idx (K,), rel (K, 3))``, each row a pose relative to ``anchors[idx]`` (metres,
+        radians). An unseen category, or one whose anchors' categories the data never pairs it with,
+        draws from every category's relations (at most :data:`POOLED_RELATIONS`), beside any anchor
+        whose category the data knows, else beside any anchor. Empty without relations or anchors."""
+        table = self.relations or {}
+        own = table.get(category, {})
+        if not any(a in own for a in anchors):
+            own = {}
+            for by_anchor in table.values():
+                for a, rows in by_anchor.items():
+                    own.setdefault(a, []).extend(rows)
+            own = {a: _evenly(rows, POOLED_RELATIONS) for a, rows in sorted(own.items())}
+            if own and not any(a in own for a in anchors):
+                rows = _evenly([r for a in sorted(own) for r in own[a]], POOLED_RELATIONS)
+                own = {a: rows for a in anchors}
+        idx = [j for j, a in enumerate(anchors) for _ in own.get(a, [])]
+        rel = [r for a in anchors for r in own.get(a, [])]
+        if not rel:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+        out = np.asarray(rel, dtype=np.float64)
+        out[:, :2] *= self.length_scale
+        return np.asarray(idx, dtype=np.int64), out
 
     def may_overlap(self, a: str, b: str) -> bool:
         """Whether objects of categories ``a`` and ``b`` overlap somewhere in the data."""
@@ -98,6 +135,19 @@ class TrustReference:
             and all(isinstance(f, list) and all(map(finite, f)) for f in ref.features),
             "feature_radius": finite(ref.feature_radius),
             "overlaps": ref.overlaps is None or isinstance(ref.overlaps, list),
+            "relations": ref.relations is None
+            or (
+                isinstance(ref.relations, dict)
+                and all(
+                    isinstance(by_anchor, dict)
+                    and all(
+                        isinstance(rows, list)
+                        and all(isinstance(r, list) and len(r) == 3 and all(map(finite, r)) for r in rows)
+                        for rows in by_anchor.values()
+                    )
+                    for by_anchor in ref.relations.values()
+                )
+            ),
         }
         bad = [k for k, ok in checks.items() if not ok]
         if bad:
@@ -195,6 +245,40 @@ def overlapping_categories(scenes: Sequence[Scene], tol: float) -> list[list[str
     return [list(pr) for pr in sorted(found)]
 
 
+def _evenly(rows: list[Any], keep: int) -> list[Any]:
+    """At most ``keep`` of ``rows``, evenly spaced (all of them when there are no more)."""
+    if len(rows) <= keep:
+        return list(rows)
+    return [rows[int(k)] for k in np.linspace(0, len(rows) - 1, keep).round()]
+
+
+def relations(scenes: Sequence[Scene], length: float) -> dict[str, dict[str, list[list[float]]]]:
+    """Each category's poses relative to each other category's in ``scenes``: ``{category: {anchor
+    category: [[x, y, heading], ...]}}``, the pose of every object in the frame of every other object
+    of the scene (x, y divided by ``length``, the heading wrapped to (-pi, pi]), at most
+    :data:`RELATIONS_PER_PAIR` per pair evenly subsampled, fewer when the pairs are many (at most
+    :data:`MAX_RELATIONS` in all)."""
+    found: dict[tuple[str, str], list[list[float]]] = {}
+    for s in scenes:
+        p = s.poses()
+        c, si = np.cos(p[:, 2]), np.sin(p[:, 2])
+        d = p[None, :, :2] - p[:, None, :2]  # (anchor, object, 2)
+        x = (c[:, None] * d[..., 0] + si[:, None] * d[..., 1]) / length
+        y = (-si[:, None] * d[..., 0] + c[:, None] * d[..., 1]) / length
+        h = np.angle(np.exp(1j * (p[None, :, 2] - p[:, None, 2])))
+        for a, anchor in enumerate(s.objects):
+            for o, obj in enumerate(s.objects):
+                if a != o:
+                    found.setdefault((obj.category, anchor.category), []).append(
+                        [float(x[a, o]), float(y[a, o]), float(h[a, o])]
+                    )
+    keep = max(1, min(RELATIONS_PER_PAIR, MAX_RELATIONS // max(1, len(found))))
+    out: dict[str, dict[str, list[list[float]]]] = {}
+    for (cat, around), rows in sorted(found.items()):
+        out.setdefault(cat, {})[around] = _evenly(rows, keep)
+    return out
+
+
 def energy_per_object(model: Any, scenes: Sequence[Scene]) -> list[float]:
     """The learned energy of each fully posed scene, divided by its number of objects."""
     with torch.no_grad():
@@ -235,6 +319,7 @@ def reference(
         features=uniq.tolist(),
         feature_radius=radius,
         overlaps=overlapping_categories(scenes, OVERLAP_TOL * length),
+        relations=relations(train, length),
     )
 
 

@@ -1,7 +1,9 @@
 """The ``langevin`` solver: batched projected Langevin dynamics over the whole cost.
 
 Particles start uniformly inside the bounds, the best ``particles`` of ``candidates`` uniform draws
-by cost when ``candidates`` is set, or from ``init``; every step is followed by the
+by cost when ``candidates`` is set, or from ``init``; with ``proposals``, that fraction of the draws
+is proposed by the cost's terms instead (the learned energy: poses beside the known objects that its
+data has); every step is followed by the
 closed-form projections of the cost's constraints (bounds with the footprint's extent, reach) and,
 with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
 is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost;
@@ -58,6 +60,9 @@ class LangevinOptions:
 
     particles: int = 64
     candidates: int = 0  # uniform draws screened by cost (forward only) for the particles' start; 0: none
+    # the fraction of the start's draws that the cost's terms propose instead of uniform ones (the
+    # learned energy: its data's poses relative to the scene's known objects; Problem.initial)
+    proposals: float = 0.0
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
     threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
     chain: LangevinConfig = SAMPLING
@@ -74,6 +79,7 @@ class LangevinOptions:
             )
         check_number("langevin", "particles", self.particles, 1, MAX_PARTICLES, integer=True)
         check_number("langevin", "candidates", self.candidates, 0, MAX_CANDIDATES, integer=True)
+        check_number("langevin", "proposals", self.proposals, 0.0, 1.0)
         if self.threads is not None:
             check_number("langevin", "threads", self.threads, 1, 1024, integer=True)
         if not isinstance(self.trusted_first, bool):
@@ -168,9 +174,11 @@ class LangevinSolver(StageSolver):
             elif init is not None:
                 starts.append(p.full(init))
             elif o.candidates > o.particles:
-                starts.append(screen(p.cost, p.initial(o.candidates, gen), o.particles))
+                starts.append(
+                    screen(p.cost, p.initial(o.candidates, gen, proposals=o.proposals), o.particles)
+                )
             else:
-                starts.append(p.initial(o.particles, gen))
+                starts.append(p.initial(o.particles, gen, proposals=o.proposals))
         sizes = [len(x) for x in starts]
         ends = np.cumsum(sizes).tolist()
         spans = list(zip([0, *ends[:-1]], ends))

@@ -134,3 +134,111 @@ def test_best_first_orders_feasible_then_trusted_then_cost():
     cost = torch.tensor([0.0, 3.0, -5.0, float("nan"), 1.0])
     assert best_first(feasible, cost, trusted).tolist() == [1, 3, 0, 2, 4]
     assert best_first(feasible, cost).tolist() == [0, 1, 3, 2, 4]
+
+
+# -- relations: where the data puts each category beside each other, and the candidates drawn from them --
+def _two_objects(pose_b: tuple[float, float, float], size: tuple[float, float] = (0.1, 0.1)) -> ss.Scene:
+    return ss.Scene(
+        [
+            ss.SceneObject("a_0", "a", size, (0.2, -0.1, 0.5)),
+            ss.SceneObject("b_0", "b", size, pose_b),
+        ],
+        ((-1.0, -1.0), (1.0, 1.0)),
+    )
+
+
+def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
+    from scenescore.geometry import relative_poses
+    from scenescore.models.trust import relations
+
+    s = _two_objects((0.5, 0.3, -2.9))
+    rel = relations([s], length=0.25)
+    p = torch.tensor(s.poses())
+    want = relative_poses(p[0], p[1]).numpy()
+    got = np.asarray(rel["b"]["a"][0])
+    assert got[:2] == pytest.approx(want[:2] / 0.25)
+    assert got[2] == pytest.approx(float(np.angle(np.exp(1j * want[2]))))
+    assert set(rel) == {"a", "b"} and list(rel["a"]) == ["b"]
+
+
+def test_relations_are_subsampled_evenly_to_the_cap():
+    from scenescore.models.trust import RELATIONS_PER_PAIR, relations
+
+    scenes = [_two_objects((0.01 * k, 0.0, 0.0)) for k in range(3 * RELATIONS_PER_PAIR)]
+    rows = relations(scenes, length=1.0)["b"]["a"]
+    assert len(rows) == RELATIONS_PER_PAIR
+    firsts = relations(scenes[:1], 1.0)["b"]["a"][0], relations(scenes[-1:], 1.0)["b"]["a"][0]
+    assert rows[0] == firsts[0] and rows[-1] == firsts[1]  # the first and the last kept
+
+
+def test_anchored_uses_its_own_category_and_pools_for_an_unseen_one():
+    ref = TrustReference(
+        energies=[0.0],
+        length_scale=2.0,
+        nearest={},
+        nearest_any=0.0,
+        touches_bounds=[],
+        relations={"b": {"a": [[1.0, 0.0, 0.5]]}, "c": {"d": [[0.0, 3.0, 0.0]]}},
+    )
+    idx, rel = ref.anchored("b", ["d", "a", "a"])
+    assert idx.tolist() == [1, 2] and rel.tolist() == [[2.0, 0.0, 0.5]] * 2  # metres: x length scale
+    idx, rel = ref.anchored("unseen", ["a", "x"])  # pooled over categories, beside anchors the data knows
+    assert idx.tolist() == [0] and rel.tolist() == [[2.0, 0.0, 0.5]]
+    idx, rel = ref.anchored("unseen", ["x"])  # no anchor the data knows: any relation beside any anchor
+    assert idx.tolist() == [0, 0] and sorted(map(tuple, rel.tolist())) == [(0.0, 6.0, 0.0), (2.0, 0.0, 0.5)]
+    assert len(replace(ref, relations=None).anchored("b", ["a"])[0]) == 0
+
+
+def test_a_malformed_relations_table_is_named():
+    ref = TrustReference(energies=[0.0], length_scale=1.0, nearest={}, nearest_any=0.0, touches_bounds=[])
+    bad = {**ref.to_dict(), "relations": {"b": {"a": [[1.0, float("nan"), 0.0]]}}}
+    with pytest.raises(ValueError, match="relations"):
+        TrustReference.from_dict(bad)
+
+
+def test_training_stores_relations_of_the_training_scenes_only(dining):
+    from scenescore.models.trust import relations
+
+    model, tr, _ = dining
+    assert model.trust.relations == relations(tr, model.config.length_scale)
+
+
+def test_proposed_candidates_sit_where_the_data_puts_the_object_beside_a_known_one(dining):
+    from scenescore.geometry import compose_poses
+
+    model, _, te = dining
+    scene = te[0].without("fork_0")
+    p = ss.Problem(scene, ss.costs.LearnedEnergy(model))
+    gen = lambda: torch.Generator().manual_seed(3)  # noqa: E731
+    uniform = p.initial(64, gen())
+    x = p.initial(64, gen(), proposals=0.5)
+    assert torch.equal(x[32:], uniform[32:])  # the rest: the same uniform draws as without proposals
+    assert torch.equal(x, p.initial(64, gen(), proposals=0.5))  # seeded
+    i = scene.index("fork_0")
+    known = [k for k in range(len(scene)) if k != i]
+    idx, rel = model.trust.anchored("fork", [scene.objects[k].category for k in known])
+    base = torch.tensor(scene.poses())[[known[j] for j in idx]]
+    want = compose_poses(base, torch.tensor(rel))  # (K, 3): every pose the data suggests
+    want[:, 2] = torch.remainder(want[:, 2] + torch.pi, 2 * torch.pi) - torch.pi
+    want[:, :2] = torch.minimum(torch.maximum(want[:, :2], p.lo), p.hi)
+    gap = (x[:32, i, None] - want[None]).abs().amax(-1).amin(-1)  # each candidate to its nearest suggestion
+    assert gap.max() < 1e-9
+    assert not torch.equal(x[:32, i], uniform[:32, i])
+    others = [k for k in range(len(scene)) if k != i]
+    assert torch.equal(x[:, others], uniform[:, others])  # known objects stay
+
+
+def test_proposals_out_of_range_are_named():
+    from scenescore.errors import ConfigError
+    from scenescore.solvers.langevin import LangevinOptions
+
+    with pytest.raises(ConfigError, match="proposals"):
+        LangevinOptions(proposals=1.5)
+
+
+def test_costs_without_a_learned_energy_propose_nothing():
+    scene = _two_objects((0.5, 0.3, -2.9))
+    p = ss.Problem(scene, ss.costs.PoseTarget("b_0", (0.0, 0.0)), movable=["b_0"])
+    a = p.initial(16, torch.Generator().manual_seed(0))
+    b = p.initial(16, torch.Generator().manual_seed(0), proposals=1.0)
+    assert torch.equal(a, b)
