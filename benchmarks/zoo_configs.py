@@ -1,7 +1,7 @@
 """Training settings compared on the zoo: the robustness table for each, worst scenario first.
 
     python benchmarks/zoo_configs.py --scenarios zoo-bedroom,zoo-banquet --seeds 3 \\
-        --configs '[{}, {"edge_encoder": null}]' [--jobs 2] [--out DIR]
+        --configs '[{}, {"edge_encoder": null}]' [--place '{"proposals": 0.0}'] [--jobs 2] [--out DIR]
 
 Each config is a JSON object of ``TrainConfig`` fields (``{}``: the CLI's defaults). For every config the
 zoo experiment's protocol runs as ``scenescore experiment zoo`` does (48 training and 16 test scenes,
@@ -9,7 +9,9 @@ one object placed back per test scene, placement as ``place`` does), and one tab
 gives the mean, median and worst position error, the catastrophic count (more than 25 cm and 10 oracle
 means off), the ratio to the oracle, and the misses split into the search's and the energy's. A last
 line per config counts the scenarios within 3x the oracle and the catastrophic placements in all.
-``--out DIR`` keeps every case's record as ``DIR/config-K.json``.
+``--place`` changes placement's options for every config (a JSON object of ``LangevinOptions`` fields
+over ``scenescore.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
+case's record as ``DIR/config-K.json``.
 """
 
 from __future__ import annotations
@@ -18,9 +20,11 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from scenescore.experiments.zoo import run
+from scenescore.placement import PLACE
 from scenescore.scenarios.zoo import ZOO
 from scenescore.scene import atomic_write_text
 from scenescore.training import TrainConfig
@@ -33,10 +37,12 @@ def main() -> None:
     ap.add_argument("--configs", default="[{}]", help="JSON list of TrainConfig overrides (default [{}])")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--energy-only", action="store_true", help="place by the learned energy alone")
+    ap.add_argument("--place", default=None, help="JSON object of LangevinOptions fields over PLACE")
     ap.add_argument("--out", type=Path, default=None, help="keep each config's per-case records here")
     args = ap.parse_args()
     configs = json.loads(args.configs)
     scenarios = [s for s in args.scenarios.split(",") if s]
+    place = None if args.place is None else replace(PLACE, **json.loads(args.place))
     print(f"scenarios {scenarios}, seeds 0..{args.seeds - 1}, jobs {args.jobs}")
     print(
         "| config | scenario | mean t (cm) | median | worst | catastrophic | oracle t | t / oracle "
@@ -53,6 +59,7 @@ def main() -> None:
             config=TrainConfig(**overrides),
             jobs=args.jobs,
             energy_only=args.energy_only,
+            place=place,
         )
         label = json.dumps(overrides, sort_keys=True)
         if args.out is not None:

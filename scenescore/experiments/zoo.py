@@ -22,10 +22,11 @@ from tqdm.auto import tqdm
 
 from ..evaluation import MissingCase, case_errors
 from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
-from ..placement import place_many
+from ..placement import covering, place_many
 from ..scenarios import get
 from ..scenarios.zoo import ZOO
 from ..scene import Scene, SceneError
+from ..solvers.langevin import LangevinOptions
 from ..training import TrainConfig, train
 from .report import Row, format_table
 
@@ -108,19 +109,23 @@ def run_one(
     progress: bool = False,
     energy_only: bool = False,
     device: Any = None,
+    place: LangevinOptions | None = None,
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
-    the learned energy alone, the paper's protocol), on ``device``; ``{"cases", "worst", "seconds"}``."""
+    the learned energy alone, the paper's protocol; ``place``: placement options instead of
+    :data:`~scenescore.placement.PLACE`, their candidates covering the bounds as PLACE's do), on
+    ``device``; ``{"cases", "worst", "seconds"}``."""
     t0 = time.perf_counter()
     sc = get(name)
     train_s, test_s = sc.split(seed)
     model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device)
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
+    opts = None if place is None else covering(place, model, [c.scene for c in cases])
     placed: list[Scene] = []
     with tqdm(total=len(cases), desc=f"{name}: place", unit="case", disable=not progress) as bar:
         for k in range(0, len(cases), 8):
-            placed += place_many(model, [c.scene for c in cases[k : k + 8]], None, seed + k, energy_only)
+            placed += place_many(model, [c.scene for c in cases[k : k + 8]], opts, seed + k, energy_only)
             bar.update(len(cases[k : k + 8]))
     # the energy at each placement and at its truth: a placement with the higher of the two is a
     # failure of the search; with the lower, the learned energy prefers the wrong pose
@@ -156,13 +161,15 @@ def run_one(
     return {"cases": records, "worst": worst, "seconds": time.perf_counter() - t0}
 
 
-def _worker(task: tuple[str, int, TrainConfig | None, bool, Any]) -> tuple[str, int, dict[str, Any]]:
+def _worker(
+    task: tuple[str, int, TrainConfig | None, bool, Any, LangevinOptions | None],
+) -> tuple[str, int, dict[str, Any]]:
     """``run_one`` in a worker process, on one thread (the pool's processes share the cores)."""
     import torch
 
     torch.set_num_threads(1)
-    name, seed, config, energy_only, device = task
-    return name, seed, run_one(name, seed, config, energy_only=energy_only, device=device)
+    name, seed, config, energy_only, device, place = task
+    return name, seed, run_one(name, seed, config, energy_only=energy_only, device=device, place=place)
 
 
 def run(
@@ -174,9 +181,10 @@ def run(
     jobs: int = 1,
     energy_only: bool = False,
     device: Any = None,
+    place: LangevinOptions | None = None,
 ) -> ZooResult:
     """The zoo table over ``seeds`` seeds (``config``: the training settings; default the CLI's;
-    ``device``: where the models train and place).
+    ``device``: where the models train and place; ``place``: placement options, :func:`run_one`).
 
     ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
     largest scenarios first; each pair's figures do not depend on ``jobs``.
@@ -201,7 +209,7 @@ def run(
 
     if jobs == 1:
         for name, seed in tasks:
-            report(name, seed, run_one(name, seed, config, progress, energy_only, device))
+            report(name, seed, run_one(name, seed, config, progress, energy_only, device, place))
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -210,7 +218,7 @@ def run(
         order = sorted(tasks, key=lambda t: -get(t[0]).counts[1])
         with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as pool:
             futures = [
-                pool.submit(_worker, (name, seed, config, energy_only, device)) for name, seed in order
+                pool.submit(_worker, (name, seed, config, energy_only, device, place)) for name, seed in order
             ]
             for f in as_completed(futures):
                 report(*f.result())

@@ -36,3 +36,21 @@ def test_zoo_rejects_unknown_scenario_and_bad_jobs():
         zoo.run(seeds=1, scenarios=["zoo-nope"], log=lambda s: None)
     with pytest.raises(SceneError, match="jobs"):
         zoo.run(seeds=1, scenarios=["zoo-hall"], log=lambda s: None, jobs=0)
+
+
+def test_zoo_place_options_reach_every_worker():
+    """Placement options given to the zoo replace PLACE's, in one process and in workers alike."""
+    from dataclasses import replace
+
+    from scenescore.placement import PLACE
+
+    kw = dict(seeds=1, scenarios=["zoo-hall"], progress=False, log=lambda s: None, config=TINY)
+    plain = zoo.run(**kw)
+    off = replace(PLACE, proposals=0.0)
+    one, two = zoo.run(**kw, place=off), zoo.run(**kw, place=off, jobs=2)
+
+    def poses(r: zoo.ZooResult) -> list[float]:
+        return [x for c in r.per_case["zoo-hall"] for x in c["pose"]]
+
+    assert poses(one) == pytest.approx(poses(two), abs=1e-5)
+    assert poses(one) != pytest.approx(poses(plain), abs=1e-5)
