@@ -10,7 +10,6 @@ or the ``device`` given; its cost is bound there and its solvers' particles are 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -21,7 +20,7 @@ from torch import Tensor
 from .costs import Cost, Sum, Violation, as_sum
 from .devices import resolve_device
 from .sampling import uniform_init
-from .scene import Scene, SceneError, fits_bounds
+from .scene import Scene, SceneError, fits_bounds, wrap_angle
 
 __all__ = ["Problem", "ProblemError", "Feasibility"]
 
@@ -138,7 +137,7 @@ class Problem:
             y = self.cost.propose(x[:k], generator)
             if y is not None:
                 xy = torch.minimum(torch.maximum(y[..., :2], self.lo), self.hi)
-                y = torch.cat([xy, torch.remainder(y[..., 2:] + math.pi, 2 * math.pi) - math.pi], dim=-1)
+                y = torch.cat([xy, wrap_angle(y[..., 2:])], dim=-1)
                 x = torch.cat([torch.where(mask, y, x[:k]), x[k:]])
         return x
 

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..geometry import footprint_core
-from ..scene import Scene, SceneObject
+from ..geometry import footprint_core, relative_poses
+from ..scene import Scene, SceneObject, wrap_angle
 
 __all__ = [
     "TrustReference",
@@ -255,23 +255,20 @@ def _evenly(rows: list[Any], keep: int) -> list[Any]:
 def relations(scenes: Sequence[Scene], length: float) -> dict[str, dict[str, list[list[float]]]]:
     """Each category's poses relative to each other category's in ``scenes``: ``{category: {anchor
     category: [[x, y, heading], ...]}}``, the pose of every object in the frame of every other object
-    of the scene (x, y divided by ``length``, the heading wrapped to (-pi, pi]), at most
+    of the scene (x, y divided by ``length``, the heading wrapped to [-pi, pi)), at most
     :data:`RELATIONS_PER_PAIR` per pair evenly subsampled, fewer when the pairs are many (at most
     :data:`MAX_RELATIONS` in all)."""
     found: dict[tuple[str, str], list[list[float]]] = {}
     for s in scenes:
-        p = s.poses()
-        c, si = np.cos(p[:, 2]), np.sin(p[:, 2])
-        d = p[None, :, :2] - p[:, None, :2]  # (anchor, object, 2)
-        x = (c[:, None] * d[..., 0] + si[:, None] * d[..., 1]) / length
-        y = (-si[:, None] * d[..., 0] + c[:, None] * d[..., 1]) / length
-        h = np.angle(np.exp(1j * (p[None, :, 2] - p[:, None, 2])))
+        p = torch.as_tensor(s.poses(), dtype=torch.float64)
+        rel = relative_poses(p[:, None], p[None, :])  # (anchor, object, 3)
+        rel[..., :2] /= length
+        rel[..., 2] = wrap_angle(rel[..., 2])
+        rows = rel.tolist()
         for a, anchor in enumerate(s.objects):
             for o, obj in enumerate(s.objects):
                 if a != o:
-                    found.setdefault((obj.category, anchor.category), []).append(
-                        [float(x[a, o]), float(y[a, o]), float(h[a, o])]
-                    )
+                    found.setdefault((obj.category, anchor.category), []).append(rows[a][o])
     keep = max(1, min(RELATIONS_PER_PAIR, MAX_RELATIONS // max(1, len(found))))
     out: dict[str, dict[str, list[list[float]]]] = {}
     for (cat, around), rows in sorted(found.items()):

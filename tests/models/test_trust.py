@@ -150,6 +150,7 @@ def _two_objects(pose_b: tuple[float, float, float], size: tuple[float, float] =
 def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
     from scenescore.geometry import relative_poses
     from scenescore.models.trust import relations
+    from scenescore.scene import wrap_angle
 
     s = _two_objects((0.5, 0.3, -2.9))
     rel = relations([s], length=0.25)
@@ -157,7 +158,7 @@ def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
     want = relative_poses(p[0], p[1]).numpy()
     got = np.asarray(rel["b"]["a"][0])
     assert got[:2] == pytest.approx(want[:2] / 0.25)
-    assert got[2] == pytest.approx(float(np.angle(np.exp(1j * want[2]))))
+    assert got[2] == pytest.approx(float(wrap_angle(want[2])))
     assert set(rel) == {"a", "b"} and list(rel["a"]) == ["b"]
 
 
