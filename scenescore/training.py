@@ -101,6 +101,10 @@ class TrainConfig:
     saturate_edges: bool = False
     # the bounds' sides as fixed objects in every graph; None: when the data stands against them
     walls: bool | None = None
+    # with walls: length scales beyond which the offsets on an edge touching a wall saturate (see
+    # EnergyConfig.wall_range); None: linear, as before it, when four walls' ramps across the room pulled
+    # zoo-bedroom's benches 28 and 33 cm off the bed's foot
+    wall_range: float | None = 2.0
     # round disks' headings ignored by the energy (their headings in the data are arbitrary, and a network
     # that sees them learns noise: on zoo-jars, all round, placements were 15 cm off with them seen)
     round_invariant: bool = True
@@ -140,7 +144,7 @@ class TrainConfig:
             "size_noise",
         ):
             check_number(own, name, getattr(self, name), 0)
-        for name in ("length_scale", "edge_range"):
+        for name in ("length_scale", "edge_range", "wall_range"):
             if getattr(self, name) is not None:
                 check_number(own, name, getattr(self, name), 0, open_lo=True)
         if not isinstance(self.chain, LangevinConfig):
@@ -520,6 +524,7 @@ def _train(
             "length_scale": length,
             "edge_range": reach,
             "walls": bool(walls),
+            "wall_range": cfg.model.get("wall_range", cfg.wall_range) if walls else None,
         },
     ).to(device)
     data = model.tensors(scenes)

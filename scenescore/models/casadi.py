@@ -33,6 +33,7 @@ def energy_mx(model, scene, poses):
         poses = ca.vertcat(poses, ca.DM(walls))
     n = len(scene) + len(walls)
     ls = cfg.length_scale
+    reads_walls = net.reads_walls
     x, y, th = poses[:, 0], poses[:, 1], poses[:, 2]
     pairs = [(i, j) for i in range(n) for j in range(n) if i != j]
     si = np.zeros((n, len(pairs)))
@@ -56,6 +57,9 @@ def energy_mx(model, scene, poses):
                 ux, uy = ca.sqrt(ux * ux + uy * uy + 1e-12), 0
             if rnd[i] or rnd[j]:
                 hc, hs = 0, 0
+            if reads_walls and max(i, j) >= len(scene):  # an edge touching a wall (see edge_features)
+                r = cfg.wall_range
+                ux, uy = ux / ca.sqrt(1 + (ux / r) ** 2), uy / ca.sqrt(1 + (uy / r) ** 2)
             if cfg.edge_range is not None:
                 f = 1 / ca.sqrt(1 + (ux * ux + uy * uy) / cfg.edge_range**2)
                 ux, uy = ux * f, uy * f

@@ -40,7 +40,7 @@ from torch import Tensor, nn
 
 from ..scene import Scene, SceneError, atomic_write_bytes
 from .model import ScoreModel
-from .network import EnergyNet
+from .network import WALLS, EnergyNet
 
 __all__ = [
     "ENERGY_INPUTS",
@@ -95,7 +95,10 @@ class _Energy(nn.Module):
             v = torch.cat([v, poses[..., :2] / cfg.length_scale, heading], dim=-1)
             e = None
         else:
-            e = self.net.edges(poses, rnd)
+            walls = None
+            if self.net.reads_walls:  # the walls are the last nodes (see OnnxScene)
+                walls = (torch.arange(n, device=poses.device) >= n - WALLS).unsqueeze(0).expand(b, n)
+            e = self.net.edges(poses, rnd, walls)
         for layer in self.net.layers:
             v = layer(v, e, pair)
         return self.net.head(v.sum(dim=1)).squeeze(-1)

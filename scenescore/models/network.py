@@ -23,13 +23,22 @@ from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
 from ..memory import chunk_rows, return_freed_memory
 
-__all__ = ["EnergyConfig", "EnergyNet", "edge_features", "make_activation", "parameter_count"]
+__all__ = [
+    "WALLS",
+    "EnergyConfig",
+    "EnergyNet",
+    "edge_features",
+    "make_activation",
+    "parameter_count",
+    "wall_nodes",
+]
 
 Activation = Literal["silu", "softplus", "leaky_relu"]
 
 
 MAX_WIDTH = 8192  # the widest layer a checkpoint may declare (the defaults are 32)
 MAX_LAYERS = 64
+WALLS = 4  # the bounds' sides that a model with walls appends after each scene's objects
 
 
 @dataclass
@@ -56,6 +65,11 @@ class EnergyConfig:
     # edge features, so a message is a two-layer function of the relative pose and can form a well at
     # one offset, not only a ramp; None: the raw features (checkpoints before it)
     edge_encoder: int | None = None
+    # offsets (in length scales) beyond which the positions on an edge touching a wall saturate, each
+    # axis on its own: a wall is read near it (how far, how turned, which corner) and not as a ramp across
+    # the room, whose sum over four walls pulled objects off their places far from every wall; None:
+    # linear (checkpoints before it). Used only with ``walls``
+    wall_range: float | None = None
 
     def __post_init__(self) -> None:
         own = "EnergyConfig"
@@ -69,6 +83,8 @@ class EnergyConfig:
             check_number(own, "edge_range", self.edge_range, 0, open_lo=True)
         if self.edge_encoder is not None:
             check_number(own, "edge_encoder", self.edge_encoder, 1, MAX_WIDTH, integer=True)
+        if self.wall_range is not None:
+            check_number(own, "wall_range", self.wall_range, 0, open_lo=True)
         if self.message not in ("mlp", "linear"):
             raise ConfigError(f"{own}: message: expected 'mlp' or 'linear', got {self.message!r}")
         if self.activation not in ("silu", "softplus", "leaky_relu"):
@@ -122,8 +138,19 @@ def make_activation(name: str) -> nn.Module:
     raise ValueError(f"unknown activation {name!r}; expected 'silu', 'softplus' or 'leaky_relu'")
 
 
+def wall_nodes(mask: Tensor, count: int = WALLS) -> Tensor:
+    """``(B, N)`` bool: the last ``count`` real nodes of each row, where batching puts the walls."""
+    after = mask.flip(-1).cumsum(-1).flip(-1)  # real nodes at or after each index
+    return mask & (after <= count)
+
+
 def edge_features(
-    poses: Tensor, length_scale: float, edge_range: float | None = None, round: Tensor | None = None
+    poses: Tensor,
+    length_scale: float,
+    edge_range: float | None = None,
+    round: Tensor | None = None,
+    walls: Tensor | None = None,
+    wall_range: float | None = None,
 ) -> Tensor:
     """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``; positions in length scales,
     saturating beyond ``edge_range`` of them (the network never extrapolates to offsets far beyond the
@@ -131,7 +158,10 @@ def edge_features(
 
     ``round (B, N)`` marks objects without a heading (round disks): seen from a round ``j`` the offset
     is ``(|u|, 0)``, the distance alone, and an edge touching one has relative heading ``(0, 0)``; the
-    features then do not change when a round object turns."""
+    features then do not change when a round object turns.
+
+    ``walls (B, N)`` marks the walls: on an edge touching one, each offset axis saturates on its own
+    beyond ``wall_range`` length scales, ``u / sqrt(1 + (u / R)^2)``."""
     p = poses[..., :2]  # (B, N, 2)
     th = poses[..., 2]  # (B, N)
     d = p[:, :, None, :] - p[:, None, :, :]  # (B, N_i, N_j, 2): p_i - p_j
@@ -147,6 +177,10 @@ def edge_features(
         ux, uy = torch.where(rj, dist, ux), uy.masked_fill(rj, 0.0)
         either = rj | round[:, :, None]
         cd, sd = cd.masked_fill(either, 0.0), sd.masked_fill(either, 0.0)
+    if walls is not None and wall_range is not None:
+        touch = walls[:, :, None] | walls[:, None, :]  # (B, N_i, N_j)
+        ux = torch.where(touch, ux * torch.rsqrt(1 + (ux / wall_range) ** 2), ux)
+        uy = torch.where(touch, uy * torch.rsqrt(1 + (uy / wall_range) ** 2), uy)
     if edge_range is not None:
         f = torch.rsqrt(1 + (ux * ux + uy * uy) / edge_range**2)
         ux, uy = ux * f, uy * f
@@ -305,15 +339,22 @@ class EnergyNet(nn.Module):
             v = torch.cat([v, absf], dim=-1)
             e = None
         else:
-            e = self.edges(poses, rnd)
+            e = self.edges(poses, rnd, wall_nodes(mask).expand(b, n) if self.reads_walls else None)
         for layer in self.layers:
             v = layer(v, e, pair)
         return (v * maskf[..., None]).sum(dim=1)  # global add pooling
 
-    def edges(self, poses: Tensor, round: Tensor | None) -> Tensor:
+    @property
+    def reads_walls(self) -> bool:
+        """Whether edges touching a wall saturate on their own (:attr:`EnergyConfig.wall_range`)."""
+        return self.cfg.walls and self.cfg.wall_range is not None
+
+    def edges(self, poses: Tensor, round: Tensor | None, walls: Tensor | None = None) -> Tensor:
         """What the message layers read of each edge: :func:`edge_features`, through the edge encoder
-        when the network has one; ``(B, N, N, 4 or edge_encoder)``."""
-        e = edge_features(poses, self.cfg.length_scale, self.cfg.edge_range, round)
+        when the network has one; ``(B, N, N, 4 or edge_encoder)``. ``walls (B, N)``: which nodes are
+        walls (see :func:`wall_nodes`), for a network that :attr:`reads_walls`."""
+        cfg = self.cfg
+        e = edge_features(poses, cfg.length_scale, cfg.edge_range, round, walls, cfg.wall_range)
         return e if self.edge_enc is None else self.edge_enc(e)
 
 

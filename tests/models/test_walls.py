@@ -9,6 +9,7 @@ import torch
 
 import scenescore as ss
 from scenescore.models.batching import wall_objects
+from scenescore.models.network import WALLS, edge_features, wall_nodes
 from scenescore.training import TrainConfig, stands_against_walls, train
 
 
@@ -59,3 +60,75 @@ def test_training_decides_walls_from_the_data():
     from dataclasses import replace
 
     assert not train(lounge, replace(cfg, walls=False), seed=0, progress=False).config.walls
+
+
+def _wall_model(wall_range: float | None) -> ss.models.ScoreModel:
+    torch.manual_seed(0)
+    return ss.models.ScoreModel.create(
+        ss.FootprintEncoder(),
+        hidden=16,
+        layers=2,
+        walls=True,
+        edge_encoder=8,
+        round_invariant=True,
+        wall_range=wall_range,
+        length_scale=0.1,
+    ).double()
+
+
+def test_wall_nodes_are_the_last_four_real_nodes_of_each_row():
+    mask = torch.tensor([[True] * 7 + [False] * 2, [True] * 9])
+    walls = wall_nodes(mask)
+    assert walls[0].tolist() == [False] * 3 + [True] * 4 + [False] * 2
+    assert walls[1].tolist() == [False] * 5 + [True] * 4
+    assert len(wall_objects(((-1.0, -1.0), (1.0, 1.0)))) == WALLS
+
+
+def test_edges_touching_a_wall_saturate_per_axis_and_the_rest_do_not():
+    poses = torch.tensor([[[0.0, 0.0, 0.3], [5.0, -0.4, 1.0], [0.2, 3.0, -0.5]]], dtype=torch.float64)
+    walls = torch.tensor([[False, False, True]])
+    plain = edge_features(poses, 0.5)
+    e = edge_features(poses, 0.5, walls=walls, wall_range=2.0)
+    assert torch.equal(e[0, :2, :2], plain[0, :2, :2])  # object to object: unchanged
+    touch = torch.tensor([[False, False, True], [False, False, True], [True, True, False]])
+    u = plain[0, ..., :2]
+    expect = u / torch.sqrt(1 + (u / 2.0) ** 2)  # each axis on its own
+    assert torch.allclose(e[0, ..., :2][touch], expect[touch], atol=1e-12)
+    assert torch.equal(e[0, ..., 2:], plain[0, ..., 2:])  # headings as they were
+    assert float(e[0, ..., :2][touch].abs().max()) < 2.0  # bounded by the range
+
+
+def test_wall_range_reads_the_room_near_its_walls_and_keeps_the_invariances():
+    scene = ss.scenarios.get("zoo-lounge").generate(1, 0)[0]
+    model, linear = _wall_model(2.0), _wall_model(None)
+    x = torch.tensor(scene.poses())[None]
+    assert not torch.allclose(model.energy_fn(scene)(x), linear.energy_fn(scene)(x))
+    # the whole room moved with its objects: the same energy
+    (x0, y0), (x1, y1) = scene.bounds
+    moved = scene.with_poses(scene.poses() + np.array([0.7, -0.4, 0.0]))
+    moved.bounds = ((x0 + 0.7, y0 - 0.4), (x1 + 0.7, y1 - 0.4))
+    e = model.energy_fn(scene)(x)
+    assert torch.allclose(model.energy_fn(moved)(torch.tensor(moved.poses())[None]), e, atol=1e-9)
+    # padded beside a larger scene, each row finds its own walls: the same energy as alone
+    other = ss.scenarios.get("zoo-lounge").generate(8, 1)
+    big = max(other, key=len)
+    assert len(big) > len(scene)
+    st = model.tensors([scene, big])
+    assert torch.allclose(model.energy(st.poses, st)[0], e[0], atol=1e-9)
+    # first derivatives, exactly
+    fn = model.energy_fn(scene)
+    xg = x.clone().repeat(2, 1, 1)
+    xg[1, :, :2] += 0.05
+    xg.requires_grad_(True)
+    assert torch.autograd.gradcheck(fn, (xg,), eps=1e-6, atol=1e-6)
+
+
+def test_training_sets_wall_range_only_with_walls():
+    lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
+    dining = ss.scenarios.get("dining").generate(8, 0)
+    cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, model={"hidden": 8, "layers": 1})
+    assert train(lounge, cfg, seed=0, progress=False).config.wall_range == 2.0
+    assert train(dining, cfg, seed=0, progress=False).config.wall_range is None
+    from dataclasses import replace
+
+    assert train(lounge, replace(cfg, wall_range=None), seed=0, progress=False).config.wall_range is None

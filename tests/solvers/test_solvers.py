@@ -100,6 +100,10 @@ def test_casadi_mx_rebuild_matches_torch_energy():
     configs.append({"edge_range": 3.0, "walls": True, "length_scale": 0.07})  # saturating edges, walls
     configs += [{"round_invariant": True}, {"round_invariant": True, "absolute": True, "walls": True}]
     configs.append({"edge_encoder": 8, "round_invariant": True, "edge_range": 3.0})  # the edge encoder
+    # walls read near them, with an edge range too
+    configs.append(
+        {"edge_encoder": 8, "round_invariant": True, "walls": True, "wall_range": 1.5, "edge_range": 6.0}
+    )
     for extra in configs:
         model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=16, layers=2, **extra).double()
         scene = ss.scenarios.get("dining").generate(1, 0)[0]
