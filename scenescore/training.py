@@ -101,10 +101,14 @@ class TrainConfig:
     saturate_edges: bool = False
     # the bounds' sides as fixed objects in every graph; None: when the data stands against them
     walls: bool | None = None
-    # with walls: length scales beyond which the offsets on an edge touching a wall saturate (see
-    # EnergyConfig.wall_range); None: linear, as before it, when four walls' ramps across the room pulled
-    # zoo-bedroom's benches 28 and 33 cm off the bed's foot
-    wall_range: float | None = 2.0
+    # with walls: walls as lines (see EnergyConfig.wall_lines): no edge reads where along a wall an
+    # object stands. Linear wall offsets added up to ramps across the room that put zoo-bedroom's benches
+    # 28 and 33 cm off; read as lines, zoo-books went from 3.16 to 1.03 cm (benchmarks/zoo_configs.py)
+    wall_lines: bool = True
+    # with walls: length scales beyond which the offsets on an edge touching a wall saturate, each axis
+    # on its own (EnergyConfig.wall_range); None: linear. At 2 zoo-bedroom had no catastrophic placement
+    # but zoo-books had two; at 1 zoo-lounge's sofa lost its wall
+    wall_range: float | None = None
     # round disks' headings ignored by the energy (their headings in the data are arbitrary, and a network
     # that sees them learns noise: on zoo-jars, all round, placements were 15 cm off with them seen)
     round_invariant: bool = True
@@ -149,7 +153,7 @@ class TrainConfig:
                 check_number(own, name, getattr(self, name), 0, open_lo=True)
         if not isinstance(self.chain, LangevinConfig):
             raise ConfigError(f"{own}: chain: expected a LangevinConfig or a dict of its fields")
-        for name in ("saturate_edges", "round_invariant", "group_sizes"):
+        for name in ("saturate_edges", "round_invariant", "group_sizes", "wall_lines"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{own}: {name}: expected true or false, got {getattr(self, name)!r}")
 
@@ -525,6 +529,7 @@ def _train(
             "edge_range": reach,
             "walls": bool(walls),
             "wall_range": cfg.model.get("wall_range", cfg.wall_range) if walls else None,
+            "wall_lines": bool(cfg.model.get("wall_lines", cfg.wall_lines)) and bool(walls),
         },
     ).to(device)
     data = model.tensors(scenes)

@@ -53,11 +53,16 @@ def energy_mx(model, scene, poses):
             c, s = ca.cos(th[j]), ca.sin(th[j])
             ux, uy = (c * dx + s * dy) / ls, (-s * dx + c * dy) / ls
             hc, hs = ca.cos(th[i] - th[j]), ca.sin(th[i] - th[j])
+            if reads_walls and cfg.wall_lines and j >= len(scene):  # seen from a wall: the height alone
+                ux = 0
+            elif reads_walls and cfg.wall_lines and i >= len(scene):  # a wall: the perpendicular's foot
+                h = (-ca.sin(th[i]) * (x[j] - x[i]) + ca.cos(th[i]) * (y[j] - y[i])) / ls
+                ux, uy = hs * h, -hc * h
             if rnd[j]:  # seen from a round object: the distance alone (see edge_features)
                 ux, uy = ca.sqrt(ux * ux + uy * uy + 1e-12), 0
             if rnd[i] or rnd[j]:
                 hc, hs = 0, 0
-            if reads_walls and max(i, j) >= len(scene):  # an edge touching a wall (see edge_features)
+            if reads_walls and cfg.wall_range is not None and max(i, j) >= len(scene):  # see edge_features
                 r = cfg.wall_range
                 ux, uy = ux / ca.sqrt(1 + (ux / r) ** 2), uy / ca.sqrt(1 + (uy / r) ** 2)
             if cfg.edge_range is not None:

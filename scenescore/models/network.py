@@ -70,6 +70,10 @@ class EnergyConfig:
     # the room, whose sum over four walls pulled objects off their places far from every wall; None:
     # linear (checkpoints before it). Used only with ``walls``
     wall_range: float | None = None
+    # walls as lines: seen from a wall an object is only how far it stands from it (its offset along the
+    # wall is dropped), and a wall seen from an object is the foot of the perpendicular from the object
+    # to it, so no edge reads where along a wall something stands (False: checkpoints before it)
+    wall_lines: bool = False
 
     def __post_init__(self) -> None:
         own = "EnergyConfig"
@@ -91,7 +95,7 @@ class EnergyConfig:
             raise ConfigError(
                 f"{own}: activation: expected 'silu', 'softplus' or 'leaky_relu', got {self.activation!r}"
             )
-        for name in ("absolute", "walls", "round_invariant"):
+        for name in ("absolute", "walls", "round_invariant", "wall_lines"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{own}: {name}: expected true or false, got {getattr(self, name)!r}")
 
@@ -151,6 +155,7 @@ def edge_features(
     round: Tensor | None = None,
     walls: Tensor | None = None,
     wall_range: float | None = None,
+    wall_lines: bool = False,
 ) -> Tensor:
     """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``; positions in length scales,
     saturating beyond ``edge_range`` of them (the network never extrapolates to offsets far beyond the
@@ -160,8 +165,11 @@ def edge_features(
     is ``(|u|, 0)``, the distance alone, and an edge touching one has relative heading ``(0, 0)``; the
     features then do not change when a round object turns.
 
-    ``walls (B, N)`` marks the walls: on an edge touching one, each offset axis saturates on its own
-    beyond ``wall_range`` length scales, ``u / sqrt(1 + (u / R)^2)``."""
+    ``walls (B, N)`` marks the walls. With ``wall_lines`` an object seen from a wall is at ``(0, h)``, its
+    height ``h`` above the wall's line (along the wall's own ``+y``), and a wall seen from an object is
+    at the foot of the perpendicular, ``R(theta_wall - theta_j) (0, -h)``. With ``wall_range``, on an
+    edge touching a wall each offset axis saturates on its own beyond that many length scales,
+    ``u / sqrt(1 + (u / R)^2)``."""
     p = poses[..., :2]  # (B, N, 2)
     th = poses[..., 2]  # (B, N)
     d = p[:, :, None, :] - p[:, None, :, :]  # (B, N_i, N_j, 2): p_i - p_j
@@ -171,6 +179,13 @@ def edge_features(
     dth = th[:, :, None] - th[:, None, :]
     ux, uy = rx / length_scale, ry / length_scale
     cd, sd = torch.cos(dth), torch.sin(dth)
+    if walls is not None and wall_lines:
+        wi, wj = walls[:, :, None], walls[:, None, :]  # (B, N_i, 1), (B, 1, N_j)
+        h = uy.transpose(1, 2)  # [b, i, j]: how far j stands from i's line, were i a wall
+        ux, uy = (
+            torch.where(wj, torch.zeros_like(ux), torch.where(wi, sd * h, ux)),
+            torch.where(wi & ~wj, -cd * h, uy),
+        )
     if round is not None:
         rj = round[:, None, :]  # (B, 1, N_j)
         dist = torch.sqrt(ux * ux + uy * uy + 1e-12)  # the constant keeps the gradient finite at i == j
@@ -346,15 +361,17 @@ class EnergyNet(nn.Module):
 
     @property
     def reads_walls(self) -> bool:
-        """Whether edges touching a wall saturate on their own (:attr:`EnergyConfig.wall_range`)."""
-        return self.cfg.walls and self.cfg.wall_range is not None
+        """Whether edges touching a wall are read as such (:attr:`EnergyConfig.wall_range`, ``wall_lines``)."""
+        return self.cfg.walls and (self.cfg.wall_range is not None or self.cfg.wall_lines)
 
     def edges(self, poses: Tensor, round: Tensor | None, walls: Tensor | None = None) -> Tensor:
         """What the message layers read of each edge: :func:`edge_features`, through the edge encoder
         when the network has one; ``(B, N, N, 4 or edge_encoder)``. ``walls (B, N)``: which nodes are
         walls (see :func:`wall_nodes`), for a network that :attr:`reads_walls`."""
         cfg = self.cfg
-        e = edge_features(poses, cfg.length_scale, cfg.edge_range, round, walls, cfg.wall_range)
+        e = edge_features(
+            poses, cfg.length_scale, cfg.edge_range, round, walls, cfg.wall_range, cfg.wall_lines
+        )
         return e if self.edge_enc is None else self.edge_enc(e)
 
 

@@ -103,6 +103,7 @@ def test_onnx_matches_torch_for_any_batch_and_object_count(trained, tmp_path):
         {"round_invariant": True, "edge_range": 3.0, "activation": "softplus"},
         {"round_invariant": True, "edge_encoder": 8},
         {"round_invariant": True, "edge_encoder": 8, "walls": True, "wall_range": 1.5},
+        {"round_invariant": True, "edge_encoder": 8, "walls": True, "wall_lines": True},
     ],
 )
 def test_other_architectures(config, tmp_path):

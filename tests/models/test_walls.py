@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import torch
 
 import scenescore as ss
@@ -62,7 +63,7 @@ def test_training_decides_walls_from_the_data():
     assert not train(lounge, replace(cfg, walls=False), seed=0, progress=False).config.walls
 
 
-def _wall_model(wall_range: float | None) -> ss.models.ScoreModel:
+def _wall_model(wall_range: float | None, wall_lines: bool = False) -> ss.models.ScoreModel:
     torch.manual_seed(0)
     return ss.models.ScoreModel.create(
         ss.FootprintEncoder(),
@@ -72,6 +73,7 @@ def _wall_model(wall_range: float | None) -> ss.models.ScoreModel:
         edge_encoder=8,
         round_invariant=True,
         wall_range=wall_range,
+        wall_lines=wall_lines,
         length_scale=0.1,
     ).double()
 
@@ -98,9 +100,34 @@ def test_edges_touching_a_wall_saturate_per_axis_and_the_rest_do_not():
     assert float(e[0, ..., :2][touch].abs().max()) < 2.0  # bounded by the range
 
 
-def test_wall_range_reads_the_room_near_its_walls_and_keeps_the_invariances():
+def test_wall_lines_read_the_height_above_a_wall_and_the_foot_of_the_perpendicular():
+    # a wall along y = -1 facing +y (south), an object at (0.7, 0.2) turned 0.4, a round one at (-0.3, 0.5)
+    poses = torch.tensor([[[0.7, 0.2, 0.4], [-0.3, 0.5, 1.1], [0.0, -1.0, 0.0]]], dtype=torch.float64)
+    walls = torch.tensor([[False, False, True]])
+    rnd = torch.tensor([[False, True, False]])
+    e = edge_features(poses, 0.5, round=rnd, walls=walls, wall_lines=True)
+    plain = edge_features(poses, 0.5, round=rnd)
+    assert torch.equal(e[0, :2, :2], plain[0, :2, :2])  # object to object: unchanged
+    assert torch.allclose(e[0, 0, 2, :2], torch.tensor([0.0, 1.2 / 0.5], dtype=torch.float64))  # height only
+    assert torch.allclose(e[0, 1, 2, :2], torch.tensor([0.0, 1.5 / 0.5], dtype=torch.float64))
+    # the wall from the object: the foot (0.7, -1) in the object's frame
+    c, s = math.cos(0.4), math.sin(0.4)
+    foot = torch.tensor([c * 0.0 + s * -1.2, -s * 0.0 + c * -1.2], dtype=torch.float64) / 0.5
+    assert torch.allclose(e[0, 2, 0, :2], foot, atol=1e-12)
+    assert torch.allclose(
+        e[0, 2, 1, :2], torch.tensor([1.5 / 0.5, 0.0], dtype=torch.float64)
+    )  # round: distance
+    # sliding the object along the wall changes nothing the wall's edges read
+    slid = poses.clone()
+    slid[0, 0, 0] += 0.9
+    e2 = edge_features(slid, 0.5, round=rnd, walls=walls, wall_lines=True)
+    assert torch.allclose(e2[0, 0, 2], e[0, 0, 2]) and torch.allclose(e2[0, 2, 0], e[0, 2, 0])
+
+
+@pytest.mark.parametrize("wall_range, wall_lines", [(2.0, False), (None, True), (2.0, True)])
+def test_walls_read_as_such_keep_the_invariances(wall_range, wall_lines):
     scene = ss.scenarios.get("zoo-lounge").generate(1, 0)[0]
-    model, linear = _wall_model(2.0), _wall_model(None)
+    model, linear = _wall_model(wall_range, wall_lines), _wall_model(None)
     x = torch.tensor(scene.poses())[None]
     assert not torch.allclose(model.energy_fn(scene)(x), linear.energy_fn(scene)(x))
     # the whole room moved with its objects: the same energy
@@ -123,12 +150,15 @@ def test_wall_range_reads_the_room_near_its_walls_and_keeps_the_invariances():
     assert torch.autograd.gradcheck(fn, (xg,), eps=1e-6, atol=1e-6)
 
 
-def test_training_sets_wall_range_only_with_walls():
+def test_training_reads_walls_as_lines_only_with_walls():
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
     cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, model={"hidden": 8, "layers": 1})
-    assert train(lounge, cfg, seed=0, progress=False).config.wall_range == 2.0
-    assert train(dining, cfg, seed=0, progress=False).config.wall_range is None
+    m = train(lounge, cfg, seed=0, progress=False)
+    assert m.config.wall_lines and m.config.wall_range is None
+    plain = train(dining, cfg, seed=0, progress=False).config
+    assert not plain.wall_lines and plain.wall_range is None
     from dataclasses import replace
 
-    assert train(lounge, replace(cfg, wall_range=None), seed=0, progress=False).config.wall_range is None
+    m = train(lounge, replace(cfg, wall_lines=False, wall_range=2.0), seed=0, progress=False)
+    assert not m.config.wall_lines and m.config.wall_range == 2.0

@@ -104,6 +104,7 @@ def test_casadi_mx_rebuild_matches_torch_energy():
     configs.append(
         {"edge_encoder": 8, "round_invariant": True, "walls": True, "wall_range": 1.5, "edge_range": 6.0}
     )
+    configs.append({"edge_encoder": 8, "round_invariant": True, "walls": True, "wall_lines": True})
     for extra in configs:
         model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=16, layers=2, **extra).double()
         scene = ss.scenarios.get("dining").generate(1, 0)[0]
