@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 import scenescore as ss
-from scenescore.experiments.zoo import zoo_cases
+from scenescore.experiments.zoo import place_back, zoo_cases
 from scenescore.placement import place_many
 from scenescore.training import TrainConfig, split_validation, train
 
@@ -45,8 +45,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
 
     # in distribution
-    placed = place_many(model, [c.scene for c in cases[:8]], None, args.seed)
-    placed += place_many(model, [c.scene for c in cases[8:]], None, args.seed + 8)
+    placed = place_back(model, cases, args.seed)
     t = np.array(
         [100 * math.hypot(*(np.array(p[c.name].pose[:2]) - c.truth[:2])) for c, p in zip(cases, placed)]
     )

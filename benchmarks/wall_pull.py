@@ -17,13 +17,12 @@ from __future__ import annotations
 import argparse
 import json
 
-import numpy as np
 import torch
 
-from scenescore.experiments.zoo import zoo_cases
+from scenescore.evaluation import case_errors
+from scenescore.experiments.zoo import place_back, zoo_cases
 from scenescore.models import ScoreModel
 from scenescore.models.network import WALLS
-from scenescore.placement import place_many
 from scenescore.scenarios import get
 from scenescore.scene import Scene
 from scenescore.training import TrainConfig, train
@@ -60,14 +59,12 @@ def main() -> None:
     )
     for overrides in json.loads(args.configs):
         model = train(train_s, TrainConfig(**overrides), seed=args.seed, progress=False)
-        placed: list[Scene] = []
-        for k in range(0, len(cases), 8):
-            placed += place_many(model, [c.scene for c in cases[k : k + 8]], None, args.seed + k)
+        placed = place_back(model, cases, args.seed)
         far = 0
         for c, p in zip(cases, placed):
             pose = p[c.name].pose
             assert pose is not None
-            t = 100 * float(np.hypot(pose[0] - c.truth[0], pose[1] - c.truth[1]))
+            t, _ = case_errors(c, pose, c.category in sc.symmetric)
             if t <= args.over:
                 continue
             far += 1

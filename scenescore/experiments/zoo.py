@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,6 +21,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..evaluation import MissingCase, case_errors
+from ..models import ScoreModel
 from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
 from ..placement import covering, place_many
 from ..scenarios import get
@@ -30,7 +31,16 @@ from ..solvers.langevin import LangevinOptions
 from ..training import TrainConfig, train
 from .report import Row, format_table
 
-__all__ = ["zoo_cases", "run", "run_one", "ZooResult", "format_zoo", "CATASTROPHIC_CM", "CATASTROPHIC_ORACLE"]
+__all__ = [
+    "zoo_cases",
+    "place_back",
+    "run",
+    "run_one",
+    "ZooResult",
+    "format_zoo",
+    "CATASTROPHIC_CM",
+    "CATASTROPHIC_ORACLE",
+]
 
 CATASTROPHIC_CM = 25.0  # a placement is catastrophic when it is this far off ...
 CATASTROPHIC_ORACLE = 10.0  # ... and this many oracle means
@@ -102,6 +112,26 @@ class ZooResult:
         return sorted(out, key=lambda r: -r.figures["ratio"])
 
 
+def place_back(
+    model: ScoreModel,
+    cases: Sequence[MissingCase],
+    seed: int,
+    options: LangevinOptions | None = None,
+    energy_only: bool = False,
+    done: Callable[[int], Any] | None = None,
+) -> list[Scene]:
+    """Each case's scene with its object placed back by :func:`place_many`, 8 scenes a batch, batch
+    ``k`` (its first case's index) seeded ``seed + k``: the zoo's placements. ``done(count)`` after
+    each batch."""
+    placed: list[Scene] = []
+    for k in range(0, len(cases), 8):
+        batch = cases[k : k + 8]
+        placed += place_many(model, [c.scene for c in batch], options, seed + k, energy_only)
+        if done is not None:
+            done(len(batch))
+    return placed
+
+
 def run_one(
     name: str,
     seed: int,
@@ -122,11 +152,8 @@ def run_one(
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
     opts = None if place is None else covering(place, model, [c.scene for c in cases])
-    placed: list[Scene] = []
     with tqdm(total=len(cases), desc=f"{name}: place", unit="case", disable=not progress) as bar:
-        for k in range(0, len(cases), 8):
-            placed += place_many(model, [c.scene for c in cases[k : k + 8]], opts, seed + k, energy_only)
-            bar.update(len(cases[k : k + 8]))
+        placed = place_back(model, cases, seed, opts, energy_only, bar.update)
     # the energy at each placement and at its truth: a placement with the higher of the two is a
     # failure of the search; with the lower, the learned energy prefers the wrong pose
     truths = [p.with_poses([c.truth], [c.name]) for c, p in zip(cases, placed)]
