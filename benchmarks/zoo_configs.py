@@ -27,7 +27,7 @@ from scenescore.experiments.zoo import run
 from scenescore.placement import PLACE
 from scenescore.scenarios.zoo import ZOO
 from scenescore.scene import atomic_write_text
-from scenescore.training import TrainConfig
+from scenescore.training import VALIDATION_FRACTION, TrainConfig
 
 
 def main() -> None:
@@ -38,6 +38,12 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--energy-only", action="store_true", help="place by the learned energy alone")
     ap.add_argument("--place", default=None, help="JSON object of LangevinOptions fields over PLACE")
+    ap.add_argument(
+        "--val",
+        type=float,
+        default=0.0,
+        help=f"fraction of the training scenes held out for validation (default 0; train's is {VALIDATION_FRACTION:g})",
+    )
     ap.add_argument("--out", type=Path, default=None, help="keep each config's per-case records here")
     args = ap.parse_args()
     configs = json.loads(args.configs)
@@ -46,7 +52,8 @@ def main() -> None:
     print(f"scenarios {scenarios}, seeds 0..{args.seeds - 1}, jobs {args.jobs}")
     print(
         "| config | scenario | mean t (cm) | median | worst | catastrophic | oracle t | t / oracle "
-        "| misses: search | misses: energy | seconds |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "| misses: search | misses: energy | flagged | flagged (good) | seconds |\n"
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     )
     summary = []
     for k, overrides in enumerate(configs):
@@ -60,6 +67,7 @@ def main() -> None:
             jobs=args.jobs,
             energy_only=args.energy_only,
             place=place,
+            val=args.val,
         )
         label = json.dumps(overrides, sort_keys=True)
         if args.out is not None:
@@ -73,7 +81,7 @@ def main() -> None:
             print(
                 f"| `{label}` | {r.method} | {f['mean_t_cm']:.2f} | {f['median_t_cm']:.2f} | {f['max_t_cm']:.1f} "
                 f"| {f['catastrophic']} | {f['oracle_t_cm']:.2f} | {f['ratio']:.2f} | {f['miss_search']} "
-                f"| {f['miss_energy']} | {f['seconds']:.0f} |",
+                f"| {f['miss_energy']} | {f['flag_rate']:.2f} | {f['flag_rate_good']:.2f} | {f['seconds']:.0f} |",
                 flush=True,
             )
         within = sum(r.figures["ratio"] <= 3 for r in rows)

@@ -44,7 +44,7 @@ __all__ = [
 #: placement's default: 64 particles seeded by the best of 2048 draws (more in bounds large for the
 #: objects: :func:`covering`), half uniform, half proposed by the learned energy (its data's poses beside
 #: the scene's known objects), the PLACEMENT schedule; the answer is the best particle that puts no
-#: object where the data has none of its category (at a bound none touches, or far from the rest)
+#: object where the data has none of its category (at a bound none comes near, or far from the rest)
 PLACE = LangevinOptions(particles=64, candidates=2048, proposals=0.5, chain=PLACEMENT, trusted_first=True)
 #: uniform candidates per square length scale of the bounds that placement screens at the least: 1 cm parts
 #: on a 0.3 m board (3600 square length scales) need about 8000, where 2048 left the right slot unfound

@@ -102,10 +102,9 @@ class TrainConfig:
     # the bounds' sides as fixed objects in every graph; None: when the data stands against them
     walls: bool | None = None
     # with walls: walls as lines (see EnergyConfig.wall_lines): no edge reads where along a wall an
-    # object stands. Off by default: on the zoo it took zoo-books from 3.16 to 1.03 cm and removed
-    # zoo-bedroom's two far benches, but left a nightstand 90.7 cm off (a search miss) and the trust
-    # check flagged 15% of zoo-bedroom's good placements (0% before)
-    wall_lines: bool = False
+    # object stands. As boxes, the four walls added up to ramps across the room that pulled zoo-bedroom's
+    # benches 28 to 33 cm off (benchmarks/wall_pull.py); False reads them as boxes
+    wall_lines: bool = True
     # with walls: length scales beyond which the offsets on an edge touching a wall saturate, each axis
     # on its own (EnergyConfig.wall_range); None: linear. At 2 zoo-bedroom had no catastrophic placement
     # but zoo-books had two; at 1 zoo-lounge's sofa lost its wall
@@ -664,8 +663,12 @@ def heldout_loss(
     return float(loss), math.log(negatives + 1)
 
 
+#: the fraction of the scenes ``scenescore train`` holds out for validation by default (``--val``)
+VALIDATION_FRACTION = 0.15
+
+
 def split_validation(
-    scenes: Sequence[Scene], fraction: float = 0.15, minimum: int = 4, seed: int = 0
+    scenes: Sequence[Scene], fraction: float = VALIDATION_FRACTION, minimum: int = 4, seed: int = 0
 ) -> tuple[list[Scene], list[Scene]]:
     """Hold out about ``fraction`` of the scenes (at least ``minimum``, and at least 2 left to train on),
     chosen by ``seed``: ``(train, held_out)``; ``fraction == 0`` holds out none."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..training import VALIDATION_FRACTION
 from . import UserError, add_common, add_device, device_of, number
 
 PPM = number(0, open_lo=True)  # pixels per metre
@@ -78,8 +79,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--val",
         type=number(0, 1, open_hi=True),
-        default=0.15,
-        help="fraction of the scenes held out for validation (default 0.15, at least 4 scenes; 0: none)",
+        default=VALIDATION_FRACTION,
+        help=f"fraction of the scenes held out for validation (default {VALIDATION_FRACTION:g}, at least 4 "
+        "scenes; 0: none)",
     )
     p.add_argument(
         "--val-data", type=Path, default=None, help="a .jsonl of held-out scenes to validate on instead"

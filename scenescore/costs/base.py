@@ -142,7 +142,7 @@ class Cost:
 
     def untrusted(self, poses: Tensor) -> Tensor | None:
         """Rows of ``poses (B, N, 3)`` that put a moving object where this term's data never had one of its
-        kind (the learned energy: at a bound none touches, or far from the rest), ``(B,)`` bool;
+        kind (the learned energy: at a bound none comes near, or far from the rest), ``(B,)`` bool;
         None: no opinion. Solvers rank such rows after the others, before the cost."""
         return None
 

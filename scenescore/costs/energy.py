@@ -114,7 +114,7 @@ class LearnedEnergy(Cost):
 
     def untrusted(self, poses: Tensor) -> Tensor | None:
         """Rows that put a moving object the energy sees where the model's data never had one of its
-        category: pinned at a bound none touches, or farther from the others than any (the trust
+        category: pinned at a bound none comes near, or farther from the others than any (the trust
         reference's ``bound`` and ``far`` flags); None without a reference or a moving object."""
         ref = self.model.trust
         if ref is None or self.visible_scene is None:

@@ -7,9 +7,12 @@ which categories ever touch the bounds, which feature vectors occur). :func:`ass
 object a confidence (the fraction of reference energies at or above the placed scene's) and flags it,
 with the reason, when
 
-- the placed scene's energy lies beyond the reference's (``energy``),
+- the object's share of the energy (the scene's energy minus the scene's without it) lies beyond that of
+  every object of its category in the reference scenes (``energy``; in checkpoints from before those
+  shares were stored: the placed scene's energy per object beyond the reference scenes'),
 - the object is farther from every other object than any object of its category in the data (``far``),
-- it is pinned at a bound that no object of its category touches in the data (``bound``),
+- it is pinned at a bound that no object of its category comes near in the data (within
+  :data:`NEAR_BOUND` length scales: ``bound``),
 - its category's features are far from every feature seen in training (``novel``).
 
 It also keeps where the training data puts each category relative to each other one
@@ -21,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -36,8 +39,11 @@ __all__ = [
     "reference",
     "assess",
     "touching_bound",
+    "bound_gap",
+    "NEAR_BOUND",
     "outside_data",
     "energy_per_object",
+    "energy_shares",
     "overlapping_categories",
     "BOUND_TOL",
     "relations",
@@ -45,12 +51,17 @@ __all__ = [
 ]
 
 BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
+# length scales: a category whose data come this close to a bound may be pinned there (a nightstand
+# 1.6 cm from the wall in a bedroom whose length scale is 27 cm may stand against it; a coffee table
+# a metre from every wall may not)
+NEAR_BOUND = 0.5
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
 OVERLAP_TOL = 0.1  # length scales of penetration before two objects of the data count as overlapping
 MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
 RELATIONS_PER_PAIR = 32  # relative poses kept per (category, anchor category), evenly subsampled
 MAX_RELATIONS = 4096  # relative poses kept in all (fewer per pair when the pairs are many)
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
+MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
 
 
 @dataclass
@@ -70,6 +81,26 @@ class TrustReference:
     # category -> anchor category -> poses [x, y, heading] of the category's training objects in the
     # frame of the anchor's (x, y in length scales): :func:`relations`; None in older checkpoints
     relations: dict[str, dict[str, list[list[float]]]] | None = None
+    # category -> the smallest gap between its footprint and a bound in the data (length scales); None in
+    # older checkpoints (then only the categories of ``touches_bounds`` may be pinned at a bound)
+    bound_gaps: dict[str, float] | None = None
+    # category -> each reference object's share of its scene's energy (:func:`energy_shares`), sorted;
+    # None in older checkpoints (then ``energy`` judges the placed scene's energy per object)
+    shares: dict[str, list[float]] | None = None
+
+    def may_touch_bounds(self, category: str) -> bool:
+        """Whether an object of ``category`` pinned at a bound is where the data has them: some object of
+        its category comes within :data:`NEAR_BOUND` length scales of a bound (unseen categories never)."""
+        if self.bound_gaps is None:
+            return category in self.touches_bounds
+        return self.bound_gaps.get(category, math.inf) <= NEAR_BOUND
+
+    def bound_reason(self, category: str) -> str:
+        """Why a pinned object of ``category`` is outside the data, for :func:`assess`'s ``bound`` flag."""
+        gap = None if self.bound_gaps is None else self.bound_gaps.get(category)
+        if gap is None:
+            return f"which no {category} in the data touches"
+        return f"where no {category} in the data comes within {gap * self.length_scale:.3g} m of a bound"
 
     def anchored(self, category: str, anchors: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         """Where the data would put an object of ``category`` beside objects of the categories
@@ -103,9 +134,18 @@ class TrustReference:
     @property
     def energy_limit(self) -> float:
         """Energies above this lie beyond the reference: its largest plus half its interquartile range."""
-        e = np.asarray(self.energies)
-        q25, q75 = np.percentile(e, [25, 75])
-        return float(e.max() + 0.5 * (q75 - q25))
+        return _beyond(np.asarray(self.energies))
+
+    def category_shares(self, category: str) -> np.ndarray:
+        """The reference shares an object of ``category`` is judged against: its own category's, every
+        category's for an unseen one."""
+        table = self.shares or {}
+        rows = table.get(category) or [v for vs in table.values() for v in vs]
+        return np.sort(np.asarray(rows, dtype=np.float64))
+
+    def share_limit(self, category: str) -> float:
+        """Shares above this lie beyond the reference's: its largest plus half its interquartile range."""
+        return _beyond(self.category_shares(category))
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -135,6 +175,15 @@ class TrustReference:
             and all(isinstance(f, list) and all(map(finite, f)) for f in ref.features),
             "feature_radius": finite(ref.feature_radius),
             "overlaps": ref.overlaps is None or isinstance(ref.overlaps, list),
+            "bound_gaps": ref.bound_gaps is None
+            or (isinstance(ref.bound_gaps, dict) and all(map(finite, ref.bound_gaps.values()))),
+            "shares": ref.shares is None
+            or (
+                isinstance(ref.shares, dict)
+                and all(
+                    isinstance(v, list) and len(v) > 0 and all(map(finite, v)) for v in ref.shares.values()
+                )
+            ),
             "relations": ref.relations is None
             or (
                 isinstance(ref.relations, dict)
@@ -155,6 +204,12 @@ class TrustReference:
                 f"{bad[0]}: not the expected finite numbers or lists, got {getattr(ref, bad[0])!r:.80}"
             )
         return ref
+
+
+def _beyond(values: np.ndarray) -> float:
+    """The reference's largest value plus half its interquartile range."""
+    q25, q75 = np.percentile(values, [25, 75])
+    return float(values.max() + 0.5 * (q75 - q25))
 
 
 @dataclass
@@ -202,6 +257,13 @@ def _bounds_touched(
     return names, hit
 
 
+def bound_gap(obj: SceneObject, pose: Sequence[float], bounds: Any) -> float:
+    """The smallest distance from ``obj``'s footprint at ``pose`` to a side of ``bounds`` (metres)."""
+    lo, hi = _extents(obj, np.asarray(pose, dtype=float)[None, :3])
+    (x0, y0), (x1, y1) = bounds
+    return float(min(lo[0, 0] - x0, lo[0, 1] - y0, x1 - hi[0, 0], y1 - hi[0, 1]))
+
+
 def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
     """The bound the placed footprint touches (``"x >= -0.6"``), or None."""
     names, hit = _bounds_touched(obj, np.asarray(pose, dtype=float)[None, :3], bounds, tol)
@@ -210,14 +272,14 @@ def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: fl
 
 def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses: np.ndarray) -> np.ndarray:
     """Rows of ``poses (B, N, 3)`` that put an object of ``names`` where the data never had one of its
-    category: pinned at a bound that none touches, or farther from every other object than any
+    category: pinned at a bound that none comes near, or farther from every other object than any
     (:func:`assess`'s ``bound`` and ``far`` flags, for a whole population): ``(B,)`` bool."""
     out = np.zeros(len(poses), dtype=bool)
     tol = BOUND_TOL * ref.length_scale
     for name in names:
         i = scene.index(name)
         o = scene.objects[i]
-        if o.category not in ref.touches_bounds:
+        if not ref.may_touch_bounds(o.category):
             out |= _bounds_touched(o, poses[:, i], scene.bounds, tol)[1].any(axis=1)
         far = ref.nearest.get(o.category, ref.nearest_any)
         if far > 0 and len(scene) > 1:
@@ -284,6 +346,22 @@ def energy_per_object(model: Any, scenes: Sequence[Scene]) -> list[float]:
     return [float(v) / len(s) for v, s in zip(e, scenes)]
 
 
+def energy_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) -> np.ndarray:
+    """Each object's share of ``scene``'s learned energy (every pose known): the scene's energy minus
+    the energy of the scene without it (a lone object's: the scene's energy), for ``names`` (default all)
+    ``(K,)``. Unlike the scene's energy it does not move with how unusual the rest of the scene is."""
+    names = list(scene.names if names is None else names)
+    rest = [
+        replace(scene, objects=[o for o in scene.objects if o.name != name])
+        for name in names
+        if len(scene) > 1
+    ]
+    with torch.no_grad():
+        st = model.tensors([scene, *rest])
+        e = model.energy(st.poses, st).double().cpu().numpy()
+    return e[0] - e[1:] if rest else e[:1].repeat(len(names))
+
+
 def reference(
     model: Any, train: Sequence[Scene], held_out: Sequence[Scene] = (), feature_noise: float = 0.0
 ) -> TrustReference:
@@ -295,6 +373,7 @@ def reference(
     length = float(model.config.length_scale)
     nearest: dict[str, float] = {}
     touching: set[str] = set()
+    gaps: dict[str, float] = {}
     for s in scenes:
         p = s.poses()
         nn = _nearest(p) / length
@@ -303,10 +382,16 @@ def reference(
                 nearest[o.category] = max(nearest.get(o.category, 0.0), float(d))
             if touching_bound(o, pose, s.bounds, BOUND_TOL * length):
                 touching.add(o.category)
+            gap = max(0.0, bound_gap(o, pose, s.bounds) / length)
+            gaps[o.category] = min(gaps.get(o.category, math.inf), gap)
     with torch.no_grad():
         feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().cpu().numpy()
     uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
     radius = max(1.0, 1.5 * feature_noise * math.sqrt(feats.shape[1]))
+    shares: dict[str, list[float]] = {}
+    for s in held_out or train:
+        for o, v in zip(s.objects, energy_shares(model, s)):
+            shares.setdefault(o.category, []).append(float(v))
     return TrustReference(
         energies=sorted(energy_per_object(model, held_out or train)),
         length_scale=length,
@@ -317,6 +402,8 @@ def reference(
         feature_radius=radius,
         overlaps=overlapping_categories(scenes, OVERLAP_TOL * length),
         relations=relations(train, length),
+        bound_gaps=gaps,
+        shares={c: _evenly(sorted(v), MAX_SHARES) for c, v in sorted(shares.items())},
     )
 
 
@@ -327,10 +414,11 @@ def assess(
 
     ``feats``: the scene's encoded features ``(N, F)`` when the caller has them (saves encoding again).
     """
-    e = energy_per_object(model, [scene])[0]
-    ref_e = np.asarray(ref.energies)
-    confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
-    beyond = e > ref.energy_limit if ref_e.size else False
+    if ref.shares:
+        share = dict(zip(names, energy_shares(model, scene, names).tolist()))
+    else:  # a checkpoint from before the shares were stored: the scene's energy per object
+        e = energy_per_object(model, [scene])[0]
+        ref_e = np.asarray(ref.energies)
     p = scene.poses()
     nn = _nearest(p) / ref.length_scale
     if feats is None:
@@ -342,10 +430,22 @@ def assess(
         i = scene.index(name)
         o = scene.objects[i]
         flags = []
-        if beyond:
-            flags.append(
-                f"energy: the scene's energy {e:.3g} per object lies beyond every example's ({ref.energy_limit:.3g})"
-            )
+        if ref.shares:
+            mine = ref.category_shares(o.category)
+            confidence = float(np.mean(mine >= share[name]))
+            if share[name] > ref.share_limit(o.category):
+                whose = f"any {o.category}'s" if o.category in ref.shares else "any object's"
+                flags.append(
+                    f"energy: its share of the scene's energy {share[name]:.3g} lies beyond {whose} in the "
+                    f"data ({ref.share_limit(o.category):.3g})"
+                )
+        else:
+            confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
+            if ref_e.size and e > ref.energy_limit:
+                flags.append(
+                    f"energy: the scene's energy {e:.3g} per object lies beyond every example's "
+                    f"({ref.energy_limit:.3g})"
+                )
         far = ref.nearest.get(o.category, ref.nearest_any)
         if math.isfinite(nn[i]) and far > 0 and nn[i] > FAR_FACTOR * far:
             d, lim = nn[i] * ref.length_scale, far * ref.length_scale
@@ -353,8 +453,8 @@ def assess(
                 f"far: {d:.3g} m from its nearest neighbour; no {o.category} in the data is more than {lim:.3g} m away"
             )
         side = touching_bound(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
-        if side and o.category not in ref.touches_bounds:
-            flags.append(f"bound: pinned at the bound {side}, which no {o.category} in the data touches")
+        if side and not ref.may_touch_bounds(o.category):
+            flags.append(f"bound: pinned at the bound {side}, {ref.bound_reason(o.category)}")
         if known.size:
             dist = float(np.linalg.norm(known - feats[i].double().cpu().numpy(), axis=1).min())
             if dist > ref.feature_radius:

@@ -8,7 +8,7 @@ closed-form projections of the cost's constraints (bounds with the footprint's e
 with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
 is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost;
 with ``trusted_first`` (placement's default), in each group a particle that puts an object where its
-learned energy's data never had one (at a bound none touches, or far from the rest:
+learned energy's data never had one (at a bound none comes near, or far from the rest:
 :meth:`~scenescore.problem.Problem.untrusted`) comes after those that do not.
 
 With ``resample=k`` the particles are a population: ``k`` times during the chain they are resampled
@@ -67,7 +67,7 @@ class LangevinOptions:
     threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
     chain: LangevinConfig = SAMPLING
     # the answer: among the feasible particles (else all), those that the learned energy's data supports
-    # first (Problem.untrusted: no object at a bound its category never touches, or farther from the rest
+    # first (Problem.untrusted: no object at a bound its category never comes near, or farther from the rest
     # than any of its category), then by cost; placement's default (off for solve: a user's own costs
     # may well ask for a wall)
     trusted_first: bool = False

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 import scenescore as ss
-from scenescore.models.trust import TrustReference, assess
+from scenescore.models.trust import TrustReference, assess, energy_shares
 from scenescore.placement import PLACE, place
 from scenescore.training import TrainConfig, train
 
@@ -73,9 +73,20 @@ def test_an_object_far_from_the_training_categories_is_flagged(dining):
 def test_energy_beyond_the_reference_is_flagged(dining):
     model, _, te = dining
     ref = model.trust
-    low = TrustReference(**{**ref.to_dict(), "energies": [e - 1e3 for e in ref.energies]})
+    assert ref.shares is not None
+    low = replace(ref, shares={c: [v - 1e3 for v in vs] for c, vs in ref.shares.items()})
     a = assess(low, model, te[0], ["fork_0"])
-    assert a["fork_0"].confidence == 0.0 and any(f.startswith("energy:") for f in a["fork_0"].flags)
+    assert a["fork_0"].confidence == 0.0
+    assert [f for f in a["fork_0"].flags if f.startswith("energy:")] == [
+        f"energy: its share of the scene's energy {float(energy_shares(model, te[0], ['fork_0'])[0]):.3g} lies "
+        f"beyond any fork's in the data ({low.share_limit('fork'):.3g})"
+    ]
+    # a checkpoint from before the shares were stored judges the scene's energy per object
+    old = replace(ref, shares=None, energies=[e - 1e3 for e in ref.energies])
+    a = assess(old, model, te[0], ["fork_0"])
+    assert a["fork_0"].confidence == 0.0 and any(
+        f.startswith("energy: the scene's") for f in a["fork_0"].flags
+    )
     # a reference that round-trips through a checkpoint's JSON is the same reference
     assert TrustReference.from_dict(ref.to_dict()) == ref
     assert np.isfinite(ref.energy_limit)
@@ -99,9 +110,85 @@ def test_outside_data_agrees_with_the_bound_and_far_flags(dining):
     want = [any(f.startswith(("bound:", "far:")) for f in fl) for fl in flags]
     assert rows.tolist() == want and 0 < sum(want) < 48
     assert any(f.startswith("bound:") for fl in flags for f in fl)
-    # a category that touches a bound in the data, and may lie anywhere, is never outside it
-    ref = replace(model.trust, touches_bounds=["plate"], nearest={**model.trust.nearest, "plate": 1e9})
+    # a category that comes near a bound in the data, and may lie anywhere, is never outside it
+    gaps = {**(model.trust.bound_gaps or {}), "plate": 0.0}
+    ref = replace(model.trust, bound_gaps=gaps, nearest={**model.trust.nearest, "plate": 1e9})
     assert not outside_data(ref, s, ["plate_0"], poses).any()
+
+
+def test_an_objects_share_is_the_energy_it_adds_to_its_scene(dining):
+    """``energy_shares``: the scene's energy minus the scene's without the object, for each object; the
+    reference keeps every reference object's share by category, sorted."""
+    model, _, te = dining
+    s = te[0]
+
+    def energy(scene):
+        with torch.no_grad():
+            st = model.tensors([scene])
+            return float(model.energy(st.poses, st)[0])
+
+    want = [energy(s) - energy(replace(s, objects=[o for o in s.objects if o.name != n])) for n in s.names]
+    assert energy_shares(model, s).tolist() == pytest.approx(want, abs=1e-5)  # float32, padded batch
+    assert energy_shares(model, s, [s.names[1]]).tolist() == pytest.approx(want[1:2], abs=1e-5)
+    lone = replace(s, objects=s.objects[:1])
+    assert energy_shares(model, lone).tolist() == pytest.approx([energy(lone)], abs=1e-5)
+    ref = model.trust
+    counts = {c: sum(o.category == c for t in te for o in t.objects) for c in ref.shares}
+    assert {c: len(v) for c, v in ref.shares.items()} == counts
+    assert all(v == sorted(v) for v in ref.shares.values())
+    unseen = ref.category_shares("anvil")  # an unseen category: every category's
+    assert len(unseen) == sum(counts.values())
+
+
+def test_the_reference_stores_how_near_each_category_comes_to_the_bounds(dining):
+    from scenescore.models.trust import bound_gap
+
+    model, tr, te = dining
+    length = model.config.length_scale
+    want: dict[str, float] = {}
+    for s in [*tr, *te]:
+        for o in s.objects:
+            g = max(0.0, bound_gap(o, o.pose, s.bounds)) / length
+            want[o.category] = min(want.get(o.category, np.inf), g)
+    assert model.trust.bound_gaps == pytest.approx(want, rel=1e-12)
+    # a plate 10 cm inside the x >= -0.6 side of a 1.2 m table: its footprint's nearest bound
+    plate = next(o for o in tr[0].objects if o.category == "plate")
+    r = max(plate.size) / 2
+    assert bound_gap(plate, (-0.5 + r, 0.0, 0.0), ((-0.6, -0.6), (0.6, 0.6))) == pytest.approx(0.1, abs=1e-6)
+
+
+def test_a_category_near_a_bound_in_the_data_may_be_pinned_there(dining):
+    """Pinned at a bound is outside the data only for a category whose data keep more than NEAR_BOUND
+    length scales from every bound (a nightstand that stands 1.6 cm from the wall may stand against it)."""
+    from scenescore.models.trust import NEAR_BOUND, outside_data
+
+    model, _, te = dining
+    s = te[0]
+    i = s.index("plate_0")
+    (x0, _), _ = s.bounds
+    pinned = s.poses()
+    pinned[i, :2] = (x0 + max(s.objects[i].size) / 2, s.poses()[i, 1])  # against the x >= x0 side
+    near = replace(model.trust, bound_gaps={**(model.trust.bound_gaps or {}), "plate": 0.9 * NEAR_BOUND})
+    away = replace(model.trust, bound_gaps={**(model.trust.bound_gaps or {}), "plate": 1.1 * NEAR_BOUND})
+    assert not outside_data(near, s, ["plate_0"], pinned[None])[0]
+    assert outside_data(away, s, ["plate_0"], pinned[None])[0]
+    flag = [
+        f
+        for f in assess(away, model, s.with_poses(pinned), ["plate_0"])["plate_0"].flags
+        if f.startswith("bound:")
+    ]
+    want = f"comes within {1.1 * NEAR_BOUND * away.length_scale:.3g} m of a bound"
+    assert len(flag) == 1 and want in flag[0] and "plate" in flag[0], flag
+    assert not any(
+        f.startswith("bound:")
+        for f in assess(near, model, s.with_poses(pinned), ["plate_0"])["plate_0"].flags
+    )
+    # a checkpoint from before the gaps were stored: only the categories that touched a bound may
+    old = replace(model.trust, bound_gaps=None)
+    assert outside_data(old, s, ["plate_0"], pinned[None])[0]
+    assert not outside_data(replace(old, touches_bounds=["plate"]), s, ["plate_0"], pinned[None])[0]
+    with pytest.raises(ValueError, match="bound_gaps"):
+        TrustReference.from_dict({**model.trust.to_dict(), "bound_gaps": {"plate": float("nan")}})
 
 
 def test_trusted_first_prefers_a_particle_off_the_bounds(dining):

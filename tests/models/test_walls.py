@@ -150,17 +150,17 @@ def test_walls_read_as_such_keep_the_invariances(wall_range, wall_lines):
     assert torch.autograd.gradcheck(fn, (xg,), eps=1e-6, atol=1e-6)
 
 
-def test_training_reads_walls_as_lines_when_asked_and_only_with_walls():
+def test_training_reads_walls_as_lines_by_default_and_only_with_walls():
+    from dataclasses import replace
+
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
     cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, model={"hidden": 8, "layers": 1})
     m = train(lounge, cfg, seed=0, progress=False)
-    assert not m.config.wall_lines and m.config.wall_range is None  # the defaults: boxes, linear
-    from dataclasses import replace
-
-    lines = replace(cfg, wall_lines=True)
-    assert train(lounge, lines, seed=0, progress=False).config.wall_lines
-    plain = train(dining, lines, seed=0, progress=False).config
+    assert m.config.wall_lines and m.config.wall_range is None  # the defaults: lines, linear
+    boxes = replace(cfg, wall_lines=False)
+    assert not train(lounge, boxes, seed=0, progress=False).config.wall_lines
+    plain = train(dining, cfg, seed=0, progress=False).config
     assert not plain.wall_lines and plain.wall_range is None  # no walls: neither
-    m = train(lounge, replace(cfg, wall_range=2.0), seed=0, progress=False)
+    m = train(lounge, replace(boxes, wall_range=2.0), seed=0, progress=False)
     assert not m.config.wall_lines and m.config.wall_range == 2.0
