@@ -249,18 +249,14 @@ def run(
         for name, seed in tasks:
             report(name, seed, run_one(name, seed, config, progress, energy_only, device, place, val))
     else:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from ..workers import worker_pool
 
         # the largest graphs first, so the long pairs do not start last
         order = sorted(tasks, key=lambda t: -get(t[0]).counts[1])
-        with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as pool:
-            futures = [
-                pool.submit(_worker, (name, seed, config, energy_only, device, place, val))
-                for name, seed in order
-            ]
-            for f in as_completed(futures):
-                report(*f.result())
+        work = [(name, seed, config, energy_only, device, place, val) for name, seed in order]
+        with worker_pool(jobs) as pool:
+            for name, seed, one in pool.imap_unordered(_worker, work):
+                report(name, seed, one)
     res = ZooResult()
     for name in chosen:
         sc = get(name)

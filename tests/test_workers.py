@@ -1,0 +1,84 @@
+"""Worker processes die with their run: on an error in the parent, and when the parent is killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from scenescore.workers import worker_pool
+
+
+def _pid(_: int) -> int:
+    return os.getpid()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie (exited, not yet reaped by its parent) counts as gone
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return True
+
+
+def _wait_gone(pids: list[int], timeout: float) -> list[int]:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and any(map(_alive, pids)):
+        time.sleep(0.1)
+    return [p for p in pids if _alive(p)]
+
+
+def test_a_pool_runs_tasks_in_other_processes():
+    with worker_pool(2) as pool:
+        pids = set(pool.map(_pid, range(8)))
+    assert pids and os.getpid() not in pids
+
+
+def test_an_error_in_the_parent_terminates_the_workers():
+    with pytest.raises(RuntimeError, match="stop"):
+        with worker_pool(2) as pool:
+            pids = list(set(pool.map(_pid, range(8))))
+            pool.apply_async(time.sleep, (60,))
+            raise RuntimeError("stop")
+    assert _wait_gone(pids, 5.0) == []
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc and sends signals")
+def test_workers_exit_when_their_parent_is_killed_outright(tmp_path):
+    """``kill -9`` on the run: no cleanup runs in it, and its workers notice and exit by themselves."""
+    code = textwrap.dedent(
+        """
+        import os, sys, time
+        from scenescore.workers import worker_pool
+        def pid(_):
+            return os.getpid()
+        if __name__ == "__main__":
+            with worker_pool(2) as pool:
+                pids = sorted(set(pool.map(pid, range(8))))
+                pool.apply_async(time.sleep, (60,))
+                print(*pids, flush=True)
+                time.sleep(60)
+        """
+    )
+    script = tmp_path / "run.py"  # a file: spawned workers import the parent's main module from it
+    script.write_text(code)
+    run = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert run.stdout is not None
+        pids = [int(p) for p in run.stdout.readline().split()]
+        assert pids and all(map(_alive, pids))
+        os.kill(run.pid, signal.SIGKILL)
+        run.wait(10)
+        assert _wait_gone(pids, 10.0) == []
+    finally:
+        run.kill()
