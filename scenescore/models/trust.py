@@ -1,10 +1,11 @@
 """How far to trust a placement: its energy against the examples', and checks a person would make.
 
-Training stores a :class:`TrustReference` in the checkpoint: the per-object energies ``E / N`` of
-reference scenes (held-out ones when there are any, else the training scenes), and what the data's
-geometry looks like in its own length scale (how far each category lies from its nearest neighbour,
-which categories ever touch the bounds, which feature vectors occur). :func:`assess` gives every placed
-object a confidence (the fraction of reference energies at or above the placed scene's) and flags it,
+Training stores a :class:`TrustReference` in the checkpoint: each object's share of the energy of the
+reference scenes (held-out ones when there are any, else the training scenes; :func:`energy_shares`),
+their per-object energies ``E / N``, and what the data's geometry looks like in its own length scale
+(how far each category lies from its nearest neighbour, how near each category comes to the bounds,
+which feature vectors occur). :func:`assess` gives every placed object a confidence (the fraction of its
+category's reference shares at or above its own) and flags it,
 with the reason, when
 
 - the object's share of the energy (the scene's energy minus the scene's without it) lies beyond that of
