@@ -16,6 +16,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.memory", 0),  # the memory budget, the checks made before large allocations, chunk sizes
     ("scenescore.threads", 0),  # the run's torch thread budget, the count chosen per batch, scoped setting
     ("scenescore.devices", 0),  # the device a model, a problem and its random numbers live on
+    ("scenescore.workers", 0),  # worker processes that exit with the run that started them
     ("scenescore.scene", 0),
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),
