@@ -154,8 +154,9 @@ def run_one(
     sc = get(name)
     train_s, test_s = sc.split(seed)
     train_s, held = split_validation(train_s, val, seed=seed)
-    cfg = config or TrainConfig()
-    model = train(train_s, cfg, seed=seed, progress=progress, device=device, validation=held)
+    model = train(
+        train_s, config or TrainConfig(), seed=seed, progress=progress, device=device, validation=held
+    )
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
     opts = None if place is None else covering(place, model, [c.scene for c in cases])

@@ -244,25 +244,27 @@ def _extents(obj: SceneObject, poses: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return pts.min(1) - r, pts.max(1) + r
 
 
+def _side_gaps(obj: SceneObject, poses: np.ndarray, bounds: Any) -> np.ndarray:
+    """How far ``obj``'s footprint keeps from each side of ``bounds`` (``x >= x0``, ``y >= y0``, ``x <= x1``,
+    ``y <= y1``) at each pose of ``poses (B, 3)``: ``(B, 4)`` metres, negative beyond the side."""
+    lo, hi = _extents(obj, poses)
+    (x0, y0), (x1, y1) = bounds
+    return np.stack([lo[:, 0] - x0, lo[:, 1] - y0, x1 - hi[:, 0], y1 - hi[:, 1]], 1)
+
+
 def _bounds_touched(
     obj: SceneObject, poses: np.ndarray, bounds: Any, tol: float
 ) -> tuple[list[str], np.ndarray]:
     """The bounds' four sides by name (``"x >= -0.6"``, ...) and which of them ``obj``'s footprint touches
     at each pose of ``poses (B, 3)``: ``(B, 4)`` bool."""
-    lo, hi = _extents(obj, poses)
     (x0, y0), (x1, y1) = bounds
     names = [f"x >= {x0:g}", f"y >= {y0:g}", f"x <= {x1:g}", f"y <= {y1:g}"]
-    hit = np.stack(
-        [lo[:, 0] <= x0 + tol, lo[:, 1] <= y0 + tol, hi[:, 0] >= x1 - tol, hi[:, 1] >= y1 - tol], 1
-    )
-    return names, hit
+    return names, _side_gaps(obj, poses, bounds) <= tol
 
 
 def bound_gap(obj: SceneObject, pose: Sequence[float], bounds: Any) -> float:
     """The smallest distance from ``obj``'s footprint at ``pose`` to a side of ``bounds`` (metres)."""
-    lo, hi = _extents(obj, np.asarray(pose, dtype=float)[None, :3])
-    (x0, y0), (x1, y1) = bounds
-    return float(min(lo[0, 0] - x0, lo[0, 1] - y0, x1 - hi[0, 0], y1 - hi[0, 1]))
+    return float(_side_gaps(obj, np.asarray(pose, dtype=float)[None, :3], bounds).min())
 
 
 def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
@@ -373,18 +375,14 @@ def reference(
     scenes = list(train) + list(held_out)
     length = float(model.config.length_scale)
     nearest: dict[str, float] = {}
-    touching: set[str] = set()
-    gaps: dict[str, float] = {}
+    gaps: dict[str, float] = {}  # category -> its smallest gap to a bound in the data (metres)
     for s in scenes:
         p = s.poses()
         nn = _nearest(p) / length
         for o, d, pose in zip(s.objects, nn, p):
             if math.isfinite(d):
                 nearest[o.category] = max(nearest.get(o.category, 0.0), float(d))
-            if touching_bound(o, pose, s.bounds, BOUND_TOL * length):
-                touching.add(o.category)
-            gap = max(0.0, bound_gap(o, pose, s.bounds) / length)
-            gaps[o.category] = min(gaps.get(o.category, math.inf), gap)
+            gaps[o.category] = min(gaps.get(o.category, math.inf), bound_gap(o, pose, s.bounds))
     with torch.no_grad():
         feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().cpu().numpy()
     uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
@@ -398,12 +396,12 @@ def reference(
         length_scale=length,
         nearest=nearest,
         nearest_any=max(nearest.values(), default=0.0),
-        touches_bounds=sorted(touching),
+        touches_bounds=sorted(c for c, g in gaps.items() if g <= BOUND_TOL * length),
         features=uniq.tolist(),
         feature_radius=radius,
         overlaps=overlapping_categories(scenes, OVERLAP_TOL * length),
         relations=relations(train, length),
-        bound_gaps=gaps,
+        bound_gaps={c: max(0.0, g) / length for c, g in gaps.items()},
         shares={c: _evenly(sorted(v), MAX_SHARES) for c, v in sorted(shares.items())},
     )
 
@@ -434,11 +432,12 @@ def assess(
         if ref.shares:
             mine = ref.category_shares(o.category)
             confidence = float(np.mean(mine >= share[name]))
-            if share[name] > ref.share_limit(o.category):
+            limit = _beyond(mine)  # ref.share_limit(o.category)
+            if share[name] > limit:
                 whose = f"any {o.category}'s" if o.category in ref.shares else "any object's"
                 flags.append(
                     f"energy: its share of the scene's energy {share[name]:.3g} lies beyond {whose} in the "
-                    f"data ({ref.share_limit(o.category):.3g})"
+                    f"data ({limit:.3g})"
                 )
         else:
             confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
