@@ -18,6 +18,7 @@ from .geometry import footprint_core
 from .scene import SceneObject
 
 __all__ = [
+    "placed_core",
     "shapely_core",
     "overlap_depth_exceeds",
     "collides",
@@ -35,10 +36,15 @@ def _place(core: np.ndarray, pose: Sequence[float]) -> np.ndarray:
     return core @ np.array([[c, s], [-s, c]]) + np.array([x, y])
 
 
+def placed_core(obj: SceneObject, pose: Sequence[float]) -> tuple[np.ndarray, float]:
+    """``(vertices (K, 2), radius)``: the core's vertices at ``pose`` and the radius grown around them."""
+    core, r = footprint_core(obj)
+    return _place(core, pose), r
+
+
 def shapely_core(obj: SceneObject, pose: Sequence[float]):
     """``(geometry, radius)``: the placed core (a shapely Point or Polygon) and the radius grown around it."""
-    core, r = footprint_core(obj)
-    pts = _place(core, pose)
+    pts, r = placed_core(obj, pose)
     return (Point(pts[0]) if len(pts) == 1 else Polygon(pts)), r
 
 

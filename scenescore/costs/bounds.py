@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..exact import shapely_core
+from ..exact import placed_core
 from ..geometry import support_extent
 from .base import (
     ConstraintCost,
@@ -110,9 +110,8 @@ class Bounds(ConstraintCost):
         out = []
         for i in self._idx:
             if self.footprint:
-                core, r = shapely_core(objs[i], poses[i])
-                x0, y0, x1, y1 = core.bounds
-                mn, mx = np.array([x0 - r, y0 - r]), np.array([x1 + r, y1 + r])
+                core, r = placed_core(objs[i], poses[i])  # (K, 2): the placed core's vertices
+                mn, mx = core.min(axis=0) - r, core.max(axis=0) + r
             else:
                 mn = mx = np.asarray(poses[i][:2], dtype=float)
             v = float(max(np.max(lo - mn), np.max(mx - hi), 0.0))

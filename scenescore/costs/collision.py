@@ -228,11 +228,21 @@ class HingeCollision(ConstraintCost):
         return list(self._pairs)
 
     def check(self, poses: np.ndarray, tol: float) -> list[Violation]:
-        """Exact (shapely): pairs overlapping by more than ``tol``, or closer than ``margin - tol``."""
+        """Exact (shapely): pairs overlapping by more than ``tol``, or closer than ``margin - tol``; a pair
+        whose bounding circles stay beyond the margin is clear without a shapely call."""
         objs = self.binding.scene.objects
-        geo = [shapely_core(o, p) for o, p in zip(objs, poses)]
+        xy = np.asarray(poses, dtype=float)[:, :2]
+        pi, pj = self._pi.cpu().numpy(), self._pj.cpu().numpy()
+        d2 = ((xy[pi] - xy[pj]) ** 2).sum(-1)  # (P,) squared centre distances
+        reach = self._reach.cpu().numpy()
+        geo: dict[int, tuple] = {}  # shapely cores, made for the objects of pairs that may touch
         out = []
         for k, (i, j) in enumerate(self._pairs):
+            if d2[k] >= reach[k] * reach[k]:  # bounding circles beyond the margin: certainly clear
+                continue
+            for m in (i, j):
+                if m not in geo:
+                    geo[m] = shapely_core(objs[m], poses[m])
             (ca_, ra), (cb, rb) = geo[i], geo[j]
             a, b = objs[i].name, objs[j].name
             if overlap_depth_exceeds((ca_, ra), (cb, rb), tol):

@@ -10,6 +10,7 @@ whether an arrangement is aligned and symmetric within the stated thresholds, fr
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -114,9 +115,13 @@ class TVScenario:
         sp = [scene["speaker_0"].pose, scene["speaker_1"].pose]
         if tv is None or any(p is None for p in sp):
             return False
+        return self._aligned(tv, *cast(list[tuple[float, float, float]], sp))
+
+    def _aligned(self, tv: Sequence[float], *speakers: Sequence[float]) -> bool:
+        """:meth:`aligned` of the television's and the two speakers' poses."""
         c, s = math.cos(tv[2]), math.sin(tv[2])
         along, across = [], []
-        for p in cast(list[tuple[float, float, float]], sp):
+        for p in speakers:
             dx, dy = p[0] - tv[0], p[1] - tv[1]
             along.append(c * dx + s * dy)
             across.append(-s * dx + c * dy)
@@ -143,8 +148,9 @@ class TVScenario:
 
         prob = Problem(scene, HingeCollision(margin=0.0) + Bounds())
         out = np.zeros(len(poses), dtype=bool)
+        idx = [scene.index(n) for n in ("television", "speaker_0", "speaker_1")]
         for k, p in enumerate(np.asarray(poses, dtype=float)):
-            out[k] = self.aligned(scene.with_poses(p)) and bool(prob.check(p).feasible)
+            out[k] = self._aligned(*(p[i].tolist() for i in idx)) and bool(prob.check(p).feasible)
         return out
 
     def oracle(self, scene: Scene, name: str) -> tuple[float, float, float]:

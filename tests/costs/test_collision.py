@@ -187,3 +187,43 @@ def test_rows_below_a_floor_are_exact_and_the_rest_above_it():
         assert torch.equal(rows[below], exact[below])
         assert bool((rows[~below] > floor[~below]).all()) and bool((rows <= exact).all())
         assert 0 < int((rows != exact).sum()) < rows.numel()  # some rows bounded, not computed
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.05])
+def test_exact_check_skips_only_pairs_that_cannot_touch(margin):
+    """``check`` builds shapely geometry only for pairs whose bounding circles come within the margin;
+    its violations are those of every pair checked with shapely."""
+    from scenescore.exact import collides, shapely_core
+
+    scene = _boxes(7, 3)
+    prob = Problem(scene, HingeCollision(margin=margin))
+    term = next(iter(prob.cost))[1]
+    objs = scene.objects
+    found = 0
+    for p in _poses(scene, 24, 5).numpy():
+        got = {v.label for v in term.check(p, 1e-4)}
+        want = set()
+        for i, j in term.support():
+            (ca, ra), (cb, rb) = shapely_core(objs[i], p[i]), shapely_core(objs[j], p[j])
+            overlap = collides(objs[i], p[i], objs[j], p[j], 1e-4)
+            if overlap or (margin > 1e-4 and ca.distance(cb) - ra - rb < margin - 1e-4):
+                want.add(f"{objs[i].name} / {objs[j].name}")
+        assert got == want
+        found += len(want)
+    assert found > 0
+
+
+def test_bounds_check_matches_shapely_extents():
+    """The bounds' exact check reads the placed core's vertices; the extents equal shapely's bounds."""
+    from scenescore.exact import placed_core, shapely_core
+
+    scene = _boxes(5, 4, fixed=0)
+    for p in _poses(scene, 8, 6).numpy():
+        for o, q in zip(scene.objects, p):
+            pts, _ = placed_core(o, q)
+            geo, _ = shapely_core(o, q)
+            assert tuple(pts.min(0)) + tuple(pts.max(0)) == geo.bounds
+    prob = Problem(scene, Bounds())
+    far = _poses(scene, 2, 7).numpy()[1]  # all far apart: most outside the bounds
+    names = {v.label for v in prob.check(far).violations}
+    assert names and names <= set(scene.names)
