@@ -236,6 +236,7 @@ class HingeCollision(ConstraintCost):
         d2 = ((xy[pi] - xy[pj]) ** 2).sum(-1)  # (P,) squared centre distances
         reach = self._reach.cpu().numpy()
         geo: dict[int, tuple] = {}  # shapely cores, made for the objects of pairs that may touch
+        sd: list[float] | None = None
         out = []
         for k, (i, j) in enumerate(self._pairs):
             if d2[k] >= reach[k] * reach[k]:  # bounding circles beyond the margin: certainly clear
@@ -246,8 +247,10 @@ class HingeCollision(ConstraintCost):
             (ca_, ra), (cb, rb) = geo[i], geo[j]
             a, b = objs[i].name, objs[j].name
             if overlap_depth_exceeds((ca_, ra), (cb, rb), tol):
-                x = torch.as_tensor(np.asarray(poses, dtype=np.float64), device=self.binding.device)[None]
-                d = float(self.signed_distance(x)[0, k])
+                if sd is None:  # every pair's depth, computed once for the pose set
+                    x = torch.as_tensor(np.asarray(poses, dtype=np.float64), device=self.binding.device)[None]
+                    sd = self.signed_distance(x)[0].tolist()
+                d = sd[k]
                 out.append(Violation(self.name, f"{a} / {b}", -d, f"{a} overlaps {b} ({-d * 1000:.2f} mm)"))
             elif self.margin > tol:
                 d = ca_.distance(cb) - ra - rb
