@@ -6,15 +6,17 @@ moving objects from where they are (:class:`~scenescore.costs.Displacement` and
 
 1. *Selection*: a forward selection of the objects to move, with a backward check. Each step re-places
    the objects chosen so far together with one more movable object (placed by the learned energy with
-   the others where they are; half the draws keep the chosen objects where the last step put them;
-   every candidate set of every scene in one batched chain per size) and keeps the set whose best
-   placement lowers the whole cost most; then each chosen object is tried back where it is, the rest
-   re-placed. It stops when neither lowers the cost. Re-placing the chosen set together lets two
-   objects trade places. A move's cost at effort 1 is the model's calibrated move gain
-   (:func:`calibrate`): what re-placing one object of a right scene gains.
+   the others where they are; half the draws keep the chosen objects where the last step put them, a
+   quarter put two of the set in each other's places; every candidate set of every scene in one
+   batched chain per size) and keeps the set whose best placement lowers the whole cost most; then each
+   chosen object is tried back where it is, the rest re-placed. When no single object pays, pairs of
+   the best single candidates are tried together (two objects each where the other belongs). It stops
+   when nothing lowers the cost. Moving an object costs, at effort 1, what re-placing an object of a
+   right scene gains by the model's noise (:func:`calibrate`, :func:`count_weight`).
 2. *Pruning*: objects that moved less than ``move_tol`` go back to where they are; each remaining move
-   is undone when that lowers the cost; a last refinement (``osqp``) runs over the moved objects
-   alone, so every other object is exactly where it was.
+   is undone when that lowers the cost; the moved objects are also placed again by the missing-object
+   placement (kept where the whole cost is lower), and a last refinement (``osqp``) runs over the moved
+   objects alone, so every other object is exactly where it was.
 
 :func:`plan_moves` then orders the moves so that each target is free of every object still in place
 when the object is put down (the exact check), parking an object at a buffer pose where the moves
@@ -32,10 +34,11 @@ from typing import Any, cast
 
 import numpy as np
 import torch
+from torch import Tensor
 
 from .costs import Bounds, Cost, Displacement, HingeCollision, LearnedEnergy, MoveCount, ReachLimit
 from .devices import generator
-from .errors import check_number
+from .errors import ConfigError, check_number
 from .models import ScoreModel
 from .placement import OVERLAP_WEIGHT, non_overlap
 from .problem import FEASIBILITY_TOL, Problem, ProblemError
@@ -59,6 +62,7 @@ __all__ = [
     "COUNT",
     "calibrate",
     "count_weight",
+    "object_gains",
     "move_gains",
     "plan_moves",
     "validate_plan",
@@ -69,8 +73,10 @@ __all__ = [
 EFFORT = 1.0
 #: energy per moved object when the model has no calibrated move gain (:func:`calibrate`)
 COUNT = 0.3
-#: the quantile of the move gains on scenes taken as right that a move must beat (:func:`calibrate`)
+#: the chance that noise alone moves none of a right scene's objects (:func:`calibrate`, :func:`count_weight`)
 GAIN_QUANTILE = 0.75
+#: the selection tries pairs of objects among this many best single moves when no single move pays
+PAIR_CANDIDATES = 5
 
 Reach = tuple[tuple[float, float], float]  # ((x, y) of the robot's base, radius in metres)
 
@@ -96,6 +102,8 @@ class TidyOptions:
         particles=16, candidates=256, chain=replace(PLACEMENT, steps=40, final_descent=10)
     )
     refine: str | None = "osqp"  # the refinement of the moved objects after pruning (None: none)
+    # the moved objects also placed again by the missing-object placement; kept where the whole cost is lower
+    place: bool = True
     refine_options: dict[str, Any] = field(default_factory=lambda: {"max_iter": 40})
 
     def __post_init__(self) -> None:
@@ -108,6 +116,8 @@ class TidyOptions:
         if self.max_moves is not None:
             check_number(own, "max_moves", self.max_moves, 0, 1_000_000, integer=True)
         check_number(own, "gain_tol", self.gain_tol, 0.0, math.inf)
+        if not isinstance(self.place, bool):
+            raise ConfigError(f"TidyOptions: place: expected true or false, got {self.place!r}")
 
 
 @dataclass
@@ -245,7 +255,7 @@ def tidy_problem(
     movable: Sequence[str] | None = None,
 ) -> Problem:
     """The problem :func:`tidy` solves: the learned energy plus ``effort`` times the effort (the smooth
-    count of moved objects, ``options.count`` each, and the displacement, ``options.distance`` per
+    count of moved objects, :func:`count_weight` each, and the displacement, ``options.distance`` per
     length scale), non-overlap (as ``place`` keeps it), bounds and reach, with every object movable
     that is not fixed and not in ``stay`` (or only ``movable``)."""
     o = options or TidyOptions()
@@ -264,7 +274,7 @@ def tidy_problem(
     cost: Cost = LearnedEnergy(model)
     if effort * o.distance > 0:
         cost = cost + (effort * o.distance / length) * Displacement(delta=o.delta * length, weights=weights)
-    count = count_weight(model, o)
+    count = count_weight(model, o, scene)
     if effort * count > 0:
         cost = cost + effort * count * MoveCount(sigma=o.sigma * length, weights=weights)
     hinge = non_overlap(model, scene, names)
@@ -326,10 +336,36 @@ def tidy_many(
     # small tensors: one torch thread (restored after; the placement chains choose their own)
     with torch_threads(1):
         states = _select(model, scenes, problems, o, seed)
+        tol = o.move_tol * model.config.length_scale  # metres
+        pruned = [_prune(p, x, s.poses(), tol) for s, p, x in zip(scenes, problems, states)]
+        moved = [[n for n, d in zip(s.names, _moves(s, x)) if d > tol] for s, x in zip(scenes, pruned)]
+        placed = _placed(model, scenes, moved, seed) if o.place else [None] * len(scenes)
         out = []
-        for s, p, x in zip(scenes, problems, states):
+        for s, p, x, m, alt in zip(scenes, problems, pruned, moved, placed):
             r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
-            out.append(_finish(model, s, p, r0, effort, seed, stay, weights, reach, o))
+            out.append(_finish(model, s, p, r0, m, alt, effort, seed, stay, weights, reach, o))
+    return out
+
+
+def _placed(
+    model: ScoreModel, scenes: list[Scene], moved: list[list[str]], seed: int
+) -> list[np.ndarray | None]:
+    """Per scene, its poses with the objects of ``moved`` placed again by the missing-object placement
+    (:func:`~scenescore.placement.place_many`: its longer chain and trust ranking, the other objects
+    where they are); ``None`` where nothing moves."""
+    from .placement import place_many
+
+    blanks, idx = [], []
+    for k, (s, names) in enumerate(zip(scenes, moved)):
+        if names:
+            b = s.copy()
+            for n in names:
+                b.objects[b.index(n)].pose = None
+            blanks.append(b)
+            idx.append(k)
+    out: list[np.ndarray | None] = [None] * len(scenes)
+    for k, filled in zip(idx, place_many(model, blanks, seed=seed)):
+        out[k] = filled.poses()
     return out
 
 
@@ -340,7 +376,9 @@ def _select(
     the chosen set with one more movable object (the others where they are) and keeps the set whose
     best placement lowers the whole cost (energy, effort, overlap, bounds, reach) the most; then each
     chosen object is tried back where it is, the rest re-placed, and dropped when that lowers the cost
-    (a first pick that only made room for the right one). Stops when neither step lowers the cost.
+    (a first pick that only made room for the right one). When no such step lowers the cost, pairs of
+    the :data:`PAIR_CANDIDATES` best single additions are tried together (two objects that are each
+    where the other belongs: neither move pays alone); it stops when that fails too.
     Returns each scene's poses ``(N, 3)``."""
     states = [s.poses() for s in scenes]
     chosen: list[list[str]] = [[] for _ in scenes]
@@ -355,14 +393,32 @@ def _select(
             k: [[m for m in chosen[k] if m != n] for n in chosen[k]] for k in active if len(chosen[k]) > 1
         }
         jobs = {k: (grow[k] if len(chosen[k]) < limit[k] else []) + shrink.get(k, []) for k in active}
-        found = _replacements(model, scenes, problems, jobs, o, seed + 7919 * step, states)
-        still = []
+        every: dict[int, list[tuple[float, list[str]]]] = {}
+        found = _replacements(model, scenes, problems, jobs, o, seed + 7919 * step, states, every)
+        still, stuck = [], []
         for k in active:
             if k in found and found[k][0] < best[k] - o.gain_tol:
                 best[k], states[k], chosen[k] = found[k]
                 still.append(k)
-        active = still
+            elif len(chosen[k]) + 2 <= limit[k]:
+                stuck.append(k)
+        if stuck:
+            pairs = {k: _pairs(chosen[k], every.get(k, [])) for k in stuck}
+            found = _replacements(model, scenes, problems, pairs, o, seed + 7919 * step + 1, states)
+            for k in stuck:
+                if k in found and found[k][0] < best[k] - o.gain_tol:
+                    best[k], states[k], chosen[k] = found[k]
+                    still.append(k)
+        active = sorted(still)
     return states
+
+
+def _pairs(chosen: list[str], tried: list[tuple[float, list[str]]]) -> list[list[str]]:
+    """The chosen set with two more objects, every pair among the :data:`PAIR_CANDIDATES` single additions
+    to it that cost least (``tried``: each tried set's lowest cost)."""
+    singles = sorted((c, names[-1]) for c, names in tried if len(names) == len(chosen) + 1)
+    top = [n for _, n in singles[:PAIR_CANDIDATES]]
+    return [[*chosen, a, b] for i, a in enumerate(top) for b in top[i + 1 :]]
 
 
 def _replacements(
@@ -373,11 +429,13 @@ def _replacements(
     o: TidyOptions,
     seed: int,
     warm: list[np.ndarray] | None = None,
+    every: dict[int, list[tuple[float, list[str]]]] | None = None,
 ) -> dict[int, tuple[float, np.ndarray, list[str]]]:
     """Per scene ``k`` of ``jobs``: the lowest cost of ``problems[k]`` found by re-placing one of its
     sets of objects (the others where they are; every set of every scene placed in one batched chain
     per size), its poses ``(N, 3)`` and that set. ``warm``: each scene's poses so far; half the draws
-    keep the objects of the set that those poses moved where they put them."""
+    keep the objects of the set that those poses moved where they put them. ``every``, when given, is
+    filled with each scene's ``(lowest cost, set)`` of every set."""
     from .placement import placement_problem
 
     flat = [(k, names) for k, sets in jobs.items() for names in sets if names]
@@ -397,6 +455,7 @@ def _replacements(
             moved = [i for i in rows if not np.array_equal(warm[k][i], now[i])]
             if moved:
                 x[: draws // 2, moved] = torch.as_tensor(warm[k][moved], dtype=x.dtype, device=x.device)
+        _swap_draws(x, scenes[k], names)
         blanks.append(p)
         starts.append(screen(p.cost, x, keep))
     found: dict[int, tuple[float, np.ndarray, list[str]]] = {}
@@ -408,47 +467,118 @@ def _replacements(
             assert res.samples is not None
             costs = _cost(problems[k], res.samples)
             i = int(np.argmin(costs))
+            if every is not None:
+                every.setdefault(k, []).append((float(costs[i]), list(names)))
             if k not in found or costs[i] < found[k][0]:
                 found[k] = (float(costs[i]), np.asarray(res.samples[i], dtype=float), list(names))
     return found
 
 
-def move_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> np.ndarray:
-    """Per scene taken as right: how much re-placing its best single object lowers the learned energy
-    (with non-overlap and bounds); the noise of the model's own judgement that a move must beat."""
+def object_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> list[tuple[int, str, float]]:
+    """Per movable object of each scene taken as right: ``(scene index, name, gain)``, how much re-placing
+    that object alone lowers the learned energy (with non-overlap and bounds; negative where the search
+    finds no pose as good as the one it has); the noise of the model's own judgement that a move must beat."""
     scenes = list(scenes)
     o = TidyOptions(count=0.0)
     problems = [tidy_problem(model, s, 0.0, options=o) for s in scenes]
+    items = [(k, n) for k, p in enumerate(problems) for n in p.movable]
     now = [float(_cost(p, s.poses()[None])[0]) for p, s in zip(problems, scenes)]
-    jobs = {k: [[n] for n in p.movable] for k, p in enumerate(problems)}
-    found = _replacements(model, scenes, problems, jobs, o, seed)
-    return np.array([max(0.0, now[k] - found[k][0]) if k in found else 0.0 for k in range(len(scenes))])
+    # one job per object: the scene repeated, so that each object's best re-placement is kept
+    found = _replacements(
+        model,
+        [scenes[k] for k, _ in items],
+        [problems[k] for k, _ in items],
+        {j: [[n]] for j, (_, n) in enumerate(items)},
+        o,
+        seed,
+    )
+    return [(k, n, now[k] - found[j][0] if j in found else 0.0) for j, (k, n) in enumerate(items)]
+
+
+def _swap_draws(x: Tensor, scene: Scene, names: list[str]) -> None:
+    """In the last quarter of the draws ``x (D, N, 3)``, each pair of the set ``names`` in turn trades
+    places (each where the other is now, with its heading), the set's other objects as drawn: two
+    objects in each other's places are found at once, not left to uniform draws."""
+    rows = [scene.index(m) for m in names]
+    pairs = [(a, b) for i, a in enumerate(rows) for b in rows[i + 1 :]]
+    if not pairs:
+        return
+    now = torch.as_tensor(scene.poses(), dtype=x.dtype, device=x.device)
+    start = x.shape[0] - x.shape[0] // 4
+    for j in range(start, x.shape[0]):
+        a, b = pairs[(j - start) % len(pairs)]
+        x[j, a], x[j, b] = now[b], now[a]
+
+
+def move_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> np.ndarray:
+    """Per scene taken as right: how much re-placing its best single object lowers the learned energy
+    (with non-overlap and bounds), at least 0."""
+    best = np.zeros(len(scenes))
+    for k, _, g in object_gains(model, scenes, seed):
+        best[k] = max(best[k], g)
+    return best
 
 
 def calibrate(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> float:
-    """Set ``model``'s move gain from ``scenes`` taken as right (held-out ones are best): the
-    :data:`GAIN_QUANTILE` quantile of :func:`move_gains`, the energy a move must gain at effort 1. It is
-    stored in ``model.info["tidy"]`` (and so in the checkpoint); returns it."""
+    """Measure what a move must gain on ``scenes`` taken as right (held-out ones are best) and store it in
+    ``model.info["tidy"]`` (and so in the checkpoint): ``gains``, every object's single-move gain
+    (:func:`object_gains`, at least 0, sorted), from which :func:`count_weight` sets the cost of a move
+    in a scene of any size; and ``move_gain``, the :data:`GAIN_QUANTILE` quantile of each scene's best
+    single move (:func:`move_gains`), returned."""
     posed = [s for s in scenes if not s.unknown]
     if not posed:
         raise TidyError("calibrate: no scene with every pose known to measure the move gain on")
-    gains = move_gains(model, posed, seed)
-    gain = float(np.quantile(gains, GAIN_QUANTILE))
-    model.info["tidy"] = {"move_gain": gain, "scenes": len(posed), "quantile": GAIN_QUANTILE}
+    gains = object_gains(model, posed, seed)
+    best = np.zeros(len(posed))
+    for k, _, g in gains:
+        best[k] = max(best[k], g)
+    gain = float(np.quantile(best, GAIN_QUANTILE))
+    model.info["tidy"] = {
+        "move_gain": gain,
+        "gains": sorted(max(0.0, g) for _, _, g in gains),
+        "scenes": len(posed),
+        "quantile": GAIN_QUANTILE,
+    }
     return gain
 
 
-def count_weight(model: ScoreModel, options: TidyOptions | None = None) -> float:
-    """Energy per moved object at effort 1: ``options.count``, else the model's calibrated move gain,
-    else :data:`COUNT`."""
+def _gain(value: Any) -> float | None:
+    """A stored gain when it is a finite number >= 0, else None."""
+    ok = (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and value >= 0
+    )
+    return float(value) if ok else None
+
+
+def _gains(value: Any) -> list[float] | None:
+    """Stored gains when they are a non-empty list of finite numbers >= 0, else None."""
+    if not isinstance(value, list) or not value:
+        return None
+    out = [_gain(v) for v in value]
+    return None if any(v is None for v in out) else cast(list[float], out)
+
+
+def count_weight(model: ScoreModel, options: TidyOptions | None = None, scene: Scene | None = None) -> float:
+    """Energy per moved object at effort 1: ``options.count``; else, for ``scene`` and a model that
+    :func:`calibrate` stored gains per object in, the ``GAIN_QUANTILE ** (1 / M)`` quantile of those
+    gains, ``M`` the scene's objects that are not fixed (so that noise alone moves none of ``M`` right
+    objects with probability about :data:`GAIN_QUANTILE`, whatever the scene's size); else the model's
+    ``move_gain`` (checkpoints calibrated before gains per object); else :data:`COUNT`."""
     o = options or TidyOptions()
     if o.count is not None:
         return float(o.count)
     stored = model.info.get("tidy") if isinstance(model.info, dict) else None
-    gain = stored.get("move_gain") if isinstance(stored, dict) else None
-    if isinstance(gain, (int, float)) and not isinstance(gain, bool) and math.isfinite(gain) and gain >= 0:
-        return float(gain)
-    return COUNT
+    if not isinstance(stored, dict):
+        return COUNT
+    gains = _gains(stored.get("gains"))
+    if scene is not None and gains is not None:
+        movable = max(1, sum(not ob.fixed for ob in scene.objects))
+        return float(np.quantile(gains, GAIN_QUANTILE ** (1.0 / movable)))
+    g = _gain(stored.get("move_gain"))
+    return COUNT if g is None else g
 
 
 def _by_size(problems: Sequence[Problem]) -> list[list[int]]:
@@ -470,6 +600,8 @@ def _finish(
     scene: Scene,
     problem: Problem,
     r: Result,
+    moved: list[str],
+    placed: np.ndarray | None,
     effort: float,
     seed: int,
     stay: Sequence[str],
@@ -477,12 +609,21 @@ def _finish(
     reach: Reach | None,
     o: TidyOptions,
 ) -> TidyResult:
-    """Prune the selection's poses, refine the moved objects alone, plan the moves."""
+    """Refine the moved objects alone (from the selection's pruned poses ``r.poses`` and from ``placed``,
+    their missing-object placement; the one with the lower whole cost is kept), plan the moves."""
     current = scene.poses()
-    tol = o.move_tol * model.config.length_scale  # metres
-    x = _prune(problem, r.poses, current, tol)
-    moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > tol]
+    x = r.poses
     final = tidy_problem(model, scene, effort, stay, weights, reach, o, movable=moved or problem.movable)
+
+    def worse(a: np.ndarray, b: np.ndarray) -> bool:
+        """Whether ``a`` violates the constraints more than ``b``, or as much at a higher whole cost."""
+        va, vb = (float(final.violation(torch.as_tensor(v))[0]) for v in (a, b))
+        if va > vb + 1e-12:
+            return True
+        return va >= vb - 1e-12 and float(_cost(final, a[None])[0]) > float(_cost(final, b[None])[0])
+
+    if moved and placed is not None and not worse(placed, x):
+        x = placed
     if moved and o.refine:
         # the moved objects alone, every other one exactly where it is; by the energy and the constraints
         # without the effort: the selection chose which objects move and to which spot, and a pull back
@@ -511,7 +652,7 @@ def _finish(
     except TidyError as e:
         steps, check = [], PlanCheck(False, [str(e)])
         warnings.append(str(e))
-    count = float(effort) * count_weight(model, o)
+    count = float(effort) * count_weight(model, o, scene)
     return TidyResult(
         scene, after, moved, dist, turn, disp, steps, check, r, float(effort), seed, warnings, count
     )

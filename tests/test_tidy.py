@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 from dataclasses import replace
@@ -25,6 +26,7 @@ from scenescore.tidy import (
     calibrate,
     count_weight,
     move_gains,
+    object_gains,
     plan_moves,
     tidy,
     tidy_problem,
@@ -148,6 +150,8 @@ def test_options_are_checked_and_the_count_weight_falls_back_in_order():
         TidyOptions(sigma=0.0)
     with pytest.raises(ConfigError, match="TidyOptions: count: expected a finite number >= 0"):
         TidyOptions(count=-1.0)
+    with pytest.raises(ConfigError, match="TidyOptions: place: expected true or false"):
+        TidyOptions(place="yes")  # type: ignore[arg-type]
     assert count_weight(model) == COUNT  # no calibration stored
     model.info["tidy"] = {"move_gain": 0.42}
     assert count_weight(model) == 0.42
@@ -198,3 +202,116 @@ def test_a_target_outside_the_bounds_gets_no_plan():
     after = before.with_poses([[0.58, 0.0, 0.0]], ["blue"])  # its footprint sticks out of the bounds
     with pytest.raises(TidyError, match="'blue''s target is not allowed: .*out of bounds"):
         plan_moves(before, after)
+
+
+def test_the_move_cost_follows_the_scene_size_and_falls_back_in_order():
+    """A move costs the ``GAIN_QUANTILE ** (1 / M)`` quantile of the calibrated gains, ``M`` the scene's
+    objects that may move; an explicit ``count`` overrides; a model calibrated before gains per object
+    pays its one ``move_gain``; without a scene, ``move_gain``."""
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    two = Scene(
+        [
+            SceneObject("r", "resistor", (0.1, 0.1), (0.0, 0.0, 0.0)),
+            SceneObject("c", "capacitor", (0.1, 0.1), (0.3, 0.0, 0.0)),
+            SceneObject("w", "wall", (0.1, 0.1), (0.0, 0.3, 0.0), fixed=True),
+        ]
+    )
+    assert count_weight(model, scene=two) == COUNT  # never calibrated
+    model.info["tidy"] = {"move_gain": 0.5}  # calibrated before gains per object
+    assert count_weight(model, scene=two) == 0.5
+    gains = [0.01 * k for k in range(20)]
+    model.info["tidy"] = {"move_gain": 0.5, "gains": gains}
+    assert count_weight(model, scene=two) == pytest.approx(float(np.quantile(gains, 0.75 ** (1 / 2))))
+    one = Scene([two.objects[0]])
+    assert count_weight(model, scene=one) == pytest.approx(float(np.quantile(gains, 0.75)))
+    assert count_weight(model, scene=two) > count_weight(model, scene=one)  # more objects: a rarer gain
+    assert count_weight(model) == 0.5  # no scene: the one cost
+    assert count_weight(model, TidyOptions(count=1.0), two) == 1.0
+    model.info["tidy"]["gains"] = [float("nan")] * 20  # damaged: not used
+    assert count_weight(model, scene=two) == 0.5
+
+
+def test_calibrate_stores_every_objects_gain(tmp_path):
+    """``gains``: every object's single-move gain (at least 0), sorted; ``move_gain``: the quantile of
+    each scene's best, returned."""
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    scenes = [_two(a=(-0.3, 0.1 * k), b=(0.3, -0.1)) for k in range(4)]
+    gains = object_gains(model, scenes, seed=0)
+    assert [(k, n) for k, n, _ in gains] == [(k, n) for k in range(4) for n in ("red", "blue")]
+    gain = calibrate(model, scenes, seed=0)
+    info = model.info["tidy"]
+    assert info["gains"] == pytest.approx(sorted(max(0.0, g) for _, _, g in gains))
+    best = [max(max(0.0, g) for k2, _, g in gains if k2 == k) for k in range(4)]
+    assert gain == info["move_gain"] == pytest.approx(float(np.quantile(best, 0.75)))
+    model.save(tmp_path / "m.ckpt")
+    assert load(tmp_path / "m.ckpt").info["tidy"] == model.info["tidy"]
+
+
+def test_swap_draws_put_each_pair_in_each_others_places():
+    from scenescore.tidy import _swap_draws
+
+    scene = Scene(
+        [
+            SceneObject("a", "box", (0.1, 0.1), (-0.3, 0.0, 0.1)),
+            SceneObject("b", "bowl", (0.1, 0.1), (0.3, 0.0, 0.2)),
+            SceneObject("c", "cup", (0.1, 0.1), (0.0, 0.3, 0.3)),
+        ]
+    )
+    x = torch.zeros(12, 3, 3, dtype=torch.float64)
+    _swap_draws(x, scene, ["a", "b", "c"])
+    now = torch.as_tensor(scene.poses())
+    assert torch.equal(x[:9], torch.zeros(9, 3, 3, dtype=torch.float64))  # the first three quarters as drawn
+    assert torch.equal(x[9, 0], now[1]) and torch.equal(x[9, 1], now[0])  # a <-> b
+    assert torch.equal(x[10, 0], now[2]) and torch.equal(x[10, 2], now[0])  # a <-> c
+    assert torch.equal(x[11, 1], now[2]) and torch.equal(x[11, 2], now[1])  # b <-> c
+    y = torch.zeros(8, 3, 3, dtype=torch.float64)
+    _swap_draws(y, scene, ["a"])  # one object: nothing to trade
+    assert not y.any()
+
+
+def _swapped_wells(pairs: int) -> tuple[list[str], np.ndarray]:
+    """Two large boxes, each where the other belongs (a hand-made energy: a narrow well at each one's
+    right place): a single move cannot reach its well, the other box is in it; the pair can. Returns
+    which objects the selection moved (with ``PAIR_CANDIDATES = pairs``) and the poses."""
+    from scenescore.costs import CostFn
+
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    with torch.no_grad():
+        for prm in model.net.parameters():
+            prm.zero_()
+    scene = Scene(
+        [
+            SceneObject("red", "box", (0.4, 0.4), (-0.3, 0.0, 0.0)),
+            SceneObject("blue", "box", (0.4, 0.4), (0.3, 0.0, 0.0)),
+        ],
+        bounds=((-0.6, -0.6), (0.6, 0.6)),
+    )
+    want = torch.tensor([[0.3, 0.0], [-0.3, 0.0]], dtype=torch.float64)
+
+    def wells(x: torch.Tensor) -> torch.Tensor:
+        d2 = ((x[..., :2] - want.to(x.dtype)) ** 2).sum(-1)  # (B, 2)
+        return -10.0 * torch.exp(-d2 / 0.04).sum(-1)
+
+    chain = replace(PLACEMENT, steps=1, final_descent=0)
+    o = TidyOptions(propose=LangevinOptions(particles=4096, chain=chain))
+    prob = tidy_problem(model, scene, 1.0, options=o)
+    tidy_module = importlib.import_module("scenescore.tidy")
+    old = tidy_module.PAIR_CANDIDATES
+    tidy_module.PAIR_CANDIDATES = pairs
+    try:
+        problem = Problem(scene, prob.cost + CostFn(wells, name="wells"), movable=prob.movable)
+        x = T_select(model, [scene], [problem], o, seed=0)[0]
+    finally:
+        tidy_module.PAIR_CANDIDATES = old
+    moved = [n for i, n in enumerate(scene.names) if not np.array_equal(x[i], scene.poses()[i])]
+    return moved, x
+
+
+def test_the_selection_moves_a_swapped_pair_that_no_single_move_fixes():
+    moved, x = _swapped_wells(pairs=0)  # without pairs: neither box can reach its well alone
+    assert moved == []
+    moved, x = _swapped_wells(pairs=5)
+    assert sorted(moved) == ["blue", "red"]
+    assert np.hypot(*(x[0, :2] - [0.3, 0.0])) < 0.15 and np.hypot(*(x[1, :2] - [-0.3, 0.0])) < 0.15

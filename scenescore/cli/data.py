@@ -231,14 +231,15 @@ def run_train(args: argparse.Namespace) -> int:
     elif args.plot is not None:
         training_figure(info["history"], info["chance_loss"], [], args.plot)
         print(f"wrote {args.plot}")
-    from ..tidy import calibrate
+    from ..tidy import calibrate, count_weight
 
     right = held or train_s[:16]  # scenes taken as right: the held-out ones, else some training ones
-    gain = calibrate(model, right, seed=args.seed)
+    calibrate(model, right, seed=args.seed)
     report["tidy"] = model.info["tidy"]
     print(
-        f"tidy: a move must lower the energy by {gain:.3f} at effort 1 (the move gain of "
-        f"{len(right)} {'held-out' if held else 'training'} scenes)"
+        f"tidy: a move must lower the energy by {count_weight(model, scene=right[0]):.3f} at effort 1 in a scene "
+        f"of {len(right[0])} objects (the single-move gains of {len(right)} "
+        f"{'held-out' if held else 'training'} scenes)"
     )
     model.save(args.out)
     report_path = args.report or args.out.with_name("train_report.json")

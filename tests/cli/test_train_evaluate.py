@@ -36,6 +36,7 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
     assert val["scenes"] == 4 and val["placements"] == 32 and val["baseline"] == "Nearest-Nbr"
     assert {c["category"] for c in val["categories"]} == {"plate", "fork", "knife", "bowl"}
     assert report["tidy"]["scenes"] == 4 and report["tidy"]["move_gain"] >= 0  # calibrated on the held-out
+    assert len(report["tidy"]["gains"]) == 4 * 8  # every object of the four held-out scenes
     assert "tidy: a move must lower the energy by" in out
     assert (tmp_path / "t.png").stat().st_size > 0
     held = tmp_path / "m.val.jsonl"
