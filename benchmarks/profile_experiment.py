@@ -1,0 +1,86 @@
+"""Where an experiment's time goes: one slice of it under cProfile, by phase, on one torch thread.
+
+    python benchmarks/profile_experiment.py compose [--level 3] [--samples 5000]
+    python benchmarks/profile_experiment.py zoo [--scenario zoo-banquet] [--seed 0]
+    [--top 25]
+
+``compose``: Fig. 4's protocol at one clutter level (its energy trained, ``--samples`` Langevin samples
+over five cluttered scenes, all of them repaired by ``alm``, both counted by the scenario's exact check),
+the SceneScore rows only. ``zoo``: one scenario and seed of ``scenescore experiment zoo`` (training on 48
+scenes, the 16 placements). Prints the wall time, the cumulative seconds of each phase (a phase is a
+function; phases nest, so the shares need not add up) and the ``--top`` functions by cumulative time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import time
+
+import torch
+
+# phase -> (file suffix, function name) whose cumulative time is the phase's
+PHASES = {
+    "training (scenescore.training._train)": ("scenescore/training.py", "_train"),
+    "Langevin chains (sampling.langevin: training's counter-examples and the sampler)": (
+        "scenescore/sampling.py",
+        "langevin",
+    ),
+    "energy network forward (EnergyNet._pooled)": ("scenescore/models/network.py", "_pooled"),
+    "placement (placement.place_many)": ("scenescore/placement.py", "place_many"),
+    "exact checks (Problem.check)": ("scenescore/problem.py", "check"),
+    "batched repair (alm)": ("scenescore/solvers/alm.py", "_solve"),
+}
+
+
+def run(args: argparse.Namespace) -> None:
+    from scenescore.threads import thread_budget
+
+    with thread_budget(1):
+        if args.what == "compose":
+            from scenescore.experiments import compose
+
+            compose.run(
+                seeds=1,
+                methods=["SceneScore", compose.BATCHED],
+                levels=[args.level],
+                samples=args.samples,
+                progress=False,
+            )
+        else:
+            from scenescore.experiments import zoo
+
+            zoo.run_one(args.scenario, args.seed)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=["compose", "zoo"])
+    ap.add_argument("--level", type=int, default=3, help="compose: clutter boxes (default 3)")
+    ap.add_argument("--samples", type=int, default=5000, help="compose: samples (default 5000)")
+    ap.add_argument("--scenario", default="zoo-banquet", help="zoo: the scenario (default zoo-banquet)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--top", type=int, default=25, help="functions listed by cumulative time (default 25)")
+    args = ap.parse_args()
+    torch.manual_seed(args.seed)
+    prof = cProfile.Profile()
+    t = time.perf_counter()
+    prof.enable()
+    run(args)
+    prof.disable()
+    wall = time.perf_counter() - t
+    stats = pstats.Stats(prof)
+    print(f"{args.what}: {wall:.1f} s wall on one torch thread\n")
+    print("| phase | seconds | share of the wall time |")
+    print("|---|---:|---:|")
+    raw = stats.stats  # type: ignore[attr-defined]
+    for label, (suffix, name) in PHASES.items():
+        cum = sum(v[3] for (f, _, fn), v in raw.items() if f.endswith(suffix) and fn == name)
+        print(f"| {label} | {cum:.1f} | {cum / wall:.0%} |")
+    print()
+    stats.sort_stats("cumulative").print_stats(args.top)
+
+
+if __name__ == "__main__":
+    main()
