@@ -1,6 +1,6 @@
 """Refining every Langevin sample at once: the ``alm`` stage's time against the ``langevin`` stage's.
 
-    python benchmarks/bench_refine.py [--samples 5000] [--quick] [--model tv.ckpt] [--threads 2]
+    python benchmarks/bench_refine.py [--samples 5000] [--quick] [--model tv.ckpt] [--threads 2] [--device cuda]
 
 The television scene of Fig. 4 (``scenescore experiment compose``: its energy, its cost, its Langevin
 options) with 0 to 5 fixed clutter boxes: the Langevin stage draws ``--samples`` arrangements, then the
@@ -34,12 +34,13 @@ def feasible_fraction(problem: Problem, samples: np.ndarray) -> float:
     return float(np.mean([problem.check(x).feasible for x in samples]))
 
 
-def energy(path: str | None, seed: int, quick: bool) -> ScoreModel:
-    """The compose experiment's energy: loaded from ``path`` when it exists, else trained (and saved there)."""
+def energy(path: str | None, seed: int, quick: bool, device: str = "cpu") -> ScoreModel:
+    """The compose experiment's energy on ``device``: loaded from ``path`` when it exists, else trained
+    (and saved there)."""
     if path and Path(path).exists():
-        return load(path)
+        return load(path, device=device)
     train_scenes, _ = TVScenario().split(seed)
-    model = train_energy(train_scenes, seed, quick)
+    model = train_energy(train_scenes, seed, quick, device=device)
     if path:
         model.save(path)
     return model
@@ -61,20 +62,22 @@ def main() -> None:
     ap.add_argument(
         "--threads", type=int, default=None, help="torch threads of both stages (default: theirs)"
     )
+    ap.add_argument("--device", default="cpu", help="where the energy and both stages run (default cpu)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     samples = args.samples or (300 if args.quick else 5000)
     levels = [int(v) for v in args.levels.split(",")]
     scenario = TVScenario()
     t = time.perf_counter()
-    model = energy(args.model, args.seed, args.quick)
+    model = energy(args.model, args.seed, args.quick, args.device)
     print(f"energy ready in {time.perf_counter() - t:.1f} s")
     _, test_scenes = scenario.split(args.seed)
     threads = {} if args.threads is None else {"threads": args.threads}
     langevin = get("langevin", **langevin_options(samples), **threads)
     alm = get("alm", **threads)
     repair = get("alm", polish=False, **threads)
-    print(f"\n{samples} samples per level, torch {torch.__version__}")
+    where = torch.cuda.get_device_name(model.device) if model.device.type == "cuda" else "cpu"
+    print(f"\n{samples} samples per level, torch {torch.__version__}, {where}")
     print(
         "| clutter | langevin s | alm s | alm / langevin | repair s | repair / langevin | feasible before "
         "| after alm | after repair | alm statuses |"
