@@ -510,13 +510,18 @@ def _swap_draws(x: Tensor, scene: Scene, names: list[str]) -> None:
         x[j, a], x[j, b] = now[b], now[a]
 
 
+def _scene_best(gains: list[tuple[int, str, float]], scenes: int) -> np.ndarray:
+    """Per scene of :func:`object_gains`' ``gains``: its best single object's gain, at least 0."""
+    best = np.zeros(scenes)
+    for k, _, g in gains:
+        best[k] = max(best[k], g)
+    return best
+
+
 def move_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> np.ndarray:
     """Per scene taken as right: how much re-placing its best single object lowers the learned energy
     (with non-overlap and bounds), at least 0."""
-    best = np.zeros(len(scenes))
-    for k, _, g in object_gains(model, scenes, seed):
-        best[k] = max(best[k], g)
-    return best
+    return _scene_best(object_gains(model, scenes, seed), len(scenes))
 
 
 def calibrate(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> float:
@@ -529,10 +534,7 @@ def calibrate(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> floa
     if not posed:
         raise TidyError("calibrate: no scene with every pose known to measure the move gain on")
     gains = object_gains(model, posed, seed)
-    best = np.zeros(len(posed))
-    for k, _, g in gains:
-        best[k] = max(best[k], g)
-    gain = float(np.quantile(best, GAIN_QUANTILE))
+    gain = float(np.quantile(_scene_best(gains, len(posed)), GAIN_QUANTILE))
     model.info["tidy"] = {
         "move_gain": gain,
         "gains": sorted(max(0.0, g) for _, _, g in gains),

@@ -95,6 +95,9 @@ class HingeCollision(ConstraintCost):
         fp = b.footprints
         circle = fp.verts.norm(dim=-1).amax(-1) + fp.radius  # (N,) bounding circle about the origin
         self._reach = circle[self._pi] + circle[self._pj] + self.margin + CULL_CUSHION  # (P,)
+        # the exact check's copies, on the CPU: pair indices and squared reach
+        self._pi_np, self._pj_np = self._pi.cpu().numpy(), self._pj.cpu().numpy()
+        self._reach2_np = (self._reach * self._reach).cpu().numpy()
 
     def _kernel(self, pose_a: Tensor, pose_b: Tensor, pi: Tensor, pj: Tensor) -> Tensor:
         fn = signed_distance_reference if self._path == "reference" else signed_distance_placed
@@ -232,14 +235,12 @@ class HingeCollision(ConstraintCost):
         whose bounding circles stay beyond the margin is clear without a shapely call."""
         objs = self.binding.scene.objects
         xy = np.asarray(poses, dtype=float)[:, :2]
-        pi, pj = self._pi.cpu().numpy(), self._pj.cpu().numpy()
-        d2 = ((xy[pi] - xy[pj]) ** 2).sum(-1)  # (P,) squared centre distances
-        reach = self._reach.cpu().numpy()
+        d2 = ((xy[self._pi_np] - xy[self._pj_np]) ** 2).sum(-1)  # (P,) squared centre distances
         geo: dict[int, tuple] = {}  # shapely cores, made for the objects of pairs that may touch
         sd: list[float] | None = None
         out = []
         for k, (i, j) in enumerate(self._pairs):
-            if d2[k] >= reach[k] * reach[k]:  # bounding circles beyond the margin: certainly clear
+            if d2[k] >= self._reach2_np[k]:  # bounding circles beyond the margin: certainly clear
                 continue
             for m in (i, j):
                 if m not in geo:
