@@ -405,8 +405,11 @@ def plot_pareto(res: TidyRun, path: Any) -> None:
     xs = [f["ratio"] for _, f in pts]
     ys = [f["accepted"] for _, f in pts]
     ax.plot(xs, ys, "-o", color="C0", label="tidy, effort weight varied")
-    for (e, _), x, y in zip(pts, xs, ys):
-        ax.annotate(f"{e:g}", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7)
+    for k, ((e, _), x, y) in enumerate(zip(pts, xs, ys)):
+        # labels alternately above and below their points: weights whose points coincide stay legible
+        ax.annotate(
+            f"{e:g}", (x, y), xytext=(4, 4 if k % 2 == 0 else -10), textcoords="offset points", fontsize=7
+        )
     for m, style in (("missing placement", ("s", "C2")), ("re-place all", ("^", "C3"))):
         f = res.figures(m)
         ax.plot([f["ratio"]], [f["accepted"]], style[0], color=style[1], ls="none", label=m)
