@@ -6,17 +6,21 @@ moving objects from where they are (:class:`~scenescore.costs.Displacement` and
 
 1. *Selection*: a forward selection of the objects to move, with a backward check. Each step re-places
    the objects chosen so far together with one more movable object (placed by the learned energy with
-   the others where they are; half the draws keep the chosen objects where the last step put them, a
-   quarter put two of the set in each other's places; every candidate set of every scene in one
-   batched chain per size) and keeps the set whose best placement lowers the whole cost most; then each
+   the others where they are; as many draws as placement screens for the bounds, half of them proposed
+   beside the objects that stay as the data has them; half keep the chosen objects where the last step
+   put them, a quarter put two of the set in each other's places; every candidate set of every scene in
+   one batched chain per size) and keeps the set whose best placement lowers the whole cost most; then each
    chosen object is tried back where it is, the rest re-placed. When no single object pays, pairs of
    the best single candidates are tried together (two objects each where the other belongs). It stops
    when nothing lowers the cost. Moving an object costs, at effort 1, what re-placing an object of a
-   right scene gains by the model's noise (:func:`calibrate`, :func:`count_weight`).
+   right scene gains by the model's noise (:func:`calibrate`, :func:`count_weight`), times the object's
+   effort weight: larger objects than the scene's median cost more (:func:`effort_weights`), so where
+   moving either end of a relation fixes it, the smaller one moves.
 2. *Pruning*: objects that moved less than ``move_tol`` go back to where they are; each remaining move
    is undone when that lowers the cost; the moved objects are also placed again by the missing-object
-   placement (kept where the whole cost is lower), and a last refinement (``osqp``) runs over the moved
-   objects alone, so every other object is exactly where it was.
+   placement, and so is each set of them one smaller (the left-out object where it is); the candidate
+   with the lowest whole cost is kept, and a last refinement (``osqp``) runs over its moved objects
+   alone, so every other object is exactly where it was.
 
 :func:`plan_moves` then orders the moves so that each target is free of every object still in place
 when the object is put down (the exact check), parking an object at a buffer pose where the moves
@@ -62,6 +66,7 @@ __all__ = [
     "COUNT",
     "calibrate",
     "count_weight",
+    "effort_weights",
     "object_gains",
     "move_gains",
     "plan_moves",
@@ -99,12 +104,16 @@ class TidyOptions:
     max_moves: int | None = None  # objects the forward selection may add (None: every movable one)
     gain_tol: float = 1e-6  # a step of the selection must lower the whole cost by more than this
     propose: LangevinOptions = LangevinOptions(
-        particles=16, candidates=256, chain=replace(PLACEMENT, steps=40, final_descent=10)
+        particles=16, candidates=256, proposals=0.5, chain=replace(PLACEMENT, steps=40, final_descent=10)
     )
     refine: str | None = "osqp"  # the refinement of the moved objects after pruning (None: none)
-    # the moved objects also placed again by the missing-object placement; kept where the whole cost is lower
+    # the moved objects (and each set of them one smaller) also placed again by the missing-object
+    # placement; the candidate with the lowest whole cost is kept
     place: bool = True
     refine_options: dict[str, Any] = field(default_factory=lambda: {"max_iter": 40})
+    # objects larger than the scene's median one cost more to move (:func:`effort_weights`): where moving
+    # either end of a relation fixes it, the smaller object is the one moved
+    by_size: bool = True
 
     def __post_init__(self) -> None:
         own = "TidyOptions"
@@ -116,8 +125,9 @@ class TidyOptions:
         if self.max_moves is not None:
             check_number(own, "max_moves", self.max_moves, 0, 1_000_000, integer=True)
         check_number(own, "gain_tol", self.gain_tol, 0.0, math.inf)
-        if not isinstance(self.place, bool):
-            raise ConfigError(f"TidyOptions: place: expected true or false, got {self.place!r}")
+        for k in ("place", "by_size"):
+            if not isinstance(getattr(self, k), bool):
+                raise ConfigError(f"TidyOptions: {k}: expected true or false, got {getattr(self, k)!r}")
 
 
 @dataclass
@@ -271,6 +281,7 @@ def tidy_problem(
     if not names:
         raise TidyError("tidy: no object may move (every object is fixed or told to stay)")
     length = model.config.length_scale
+    weights = effort_weights(scene, weights, o)
     cost: Cost = LearnedEnergy(model)
     if effort * o.distance > 0:
         cost = cost + (effort * o.distance / length) * Displacement(delta=o.delta * length, weights=weights)
@@ -285,6 +296,26 @@ def tidy_problem(
         (bx, by), radius = reach
         cost = cost + (OVERLAP_WEIGHT / length) * ReachLimit(base=(bx, by), radius=radius)
     return Problem(scene, cost, movable=names, name="tidy")
+
+
+def effort_weights(
+    scene: Scene, weights: dict[str, float] | None = None, options: TidyOptions | None = None
+) -> dict[str, float] | None:
+    """Each object's effort weight: the user's ``weights`` (default 1) times, with ``options.by_size``,
+    ``sqrt(area / median area)`` of the scene's objects that are not fixed, at least 1 (a plate costs
+    more to move than the knife beside it; no object costs less than 1)."""
+    o = options or TidyOptions()
+    if not o.by_size:
+        return weights
+    free = [ob for ob in scene.objects if not ob.fixed]
+    if not free:
+        return weights
+    median = float(np.median([ob.size[0] * ob.size[1] for ob in free]))
+    user = weights or {}
+    return {
+        ob.name: user.get(ob.name, 1.0) * max(1.0, math.sqrt(ob.size[0] * ob.size[1] / median))
+        for ob in scene.objects
+    }
 
 
 # -- solving --------------------------------------------------------------------------------------------
@@ -339,7 +370,7 @@ def tidy_many(
         tol = o.move_tol * model.config.length_scale  # metres
         pruned = [_prune(p, x, s.poses(), tol) for s, p, x in zip(scenes, problems, states)]
         moved = [[n for n, d in zip(s.names, _moves(s, x)) if d > tol] for s, x in zip(scenes, pruned)]
-        placed = _placed(model, scenes, moved, seed) if o.place else [None] * len(scenes)
+        placed = _placed(model, scenes, moved, seed) if o.place else [[] for _ in scenes]
         out = []
         for s, p, x, m, alt in zip(scenes, problems, pruned, moved, placed):
             r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
@@ -349,23 +380,28 @@ def tidy_many(
 
 def _placed(
     model: ScoreModel, scenes: list[Scene], moved: list[list[str]], seed: int
-) -> list[np.ndarray | None]:
-    """Per scene, its poses with the objects of ``moved`` placed again by the missing-object placement
+) -> list[list[np.ndarray]]:
+    """Per scene, candidate poses from the missing-object placement
     (:func:`~scenescore.placement.place_many`: its longer chain and trust ranking, the other objects
-    where they are); ``None`` where nothing moves."""
+    where they are): the objects of ``moved`` placed again, and, where two or more moved, the set with
+    each one of them left where it is (an object the selection moved only to fit a short-chained
+    placement of another); empty where nothing moves."""
     from .placement import place_many
 
     blanks, idx = [], []
     for k, (s, names) in enumerate(zip(scenes, moved)):
-        if names:
+        sets = [names] if names else []
+        if len(names) > 1:
+            sets += [[m for m in names if m != n] for n in names]
+        for subset in sets:
             b = s.copy()
-            for n in names:
+            for n in subset:
                 b.objects[b.index(n)].pose = None
             blanks.append(b)
             idx.append(k)
-    out: list[np.ndarray | None] = [None] * len(scenes)
+    out: list[list[np.ndarray]] = [[] for _ in scenes]
     for k, filled in zip(idx, place_many(model, blanks, seed=seed)):
-        out[k] = filled.poses()
+        out[k].append(filled.poses())
     return out
 
 
@@ -436,19 +472,22 @@ def _replacements(
     per size), its poses ``(N, 3)`` and that set. ``warm``: each scene's poses so far; half the draws
     keep the objects of the set that those poses moved where they put them. ``every``, when given, is
     filled with each scene's ``(lowest cost, set)`` of every set."""
-    from .placement import placement_problem
+    from .placement import covering, placement_problem
 
     flat = [(k, names) for k, sets in jobs.items() for names in sets if names]
     blanks, starts = [], []
     gen = generator(seed, model.device)
-    draws, keep = max(o.propose.candidates, o.propose.particles), o.propose.particles
+    keep = o.propose.particles
     for k, names in flat:
         blank = scenes[k].copy()
         for m in names:
             blank.objects[blank.index(m)].pose = None
         # the fused network alone; the whole cost judges overlap below
         p = placement_problem(model, blank, energy_only=True)
-        x = p.initial(draws, gen)  # (draws, N, 3): the set uniform, the others where they are
+        # as many draws as placement screens for these bounds (small objects in large bounds need more);
+        # a share of them proposed beside the objects that stay, as the data has them, the rest uniform
+        draws = max(covering(o.propose, model, [scenes[k]]).candidates, keep)
+        x = p.initial(draws, gen, proposals=o.propose.proposals)  # (draws, N, 3): the others where they are
         if warm is not None:
             now = scenes[k].poses()
             rows = [scenes[k].index(m) for m in names]
@@ -603,7 +642,7 @@ def _finish(
     problem: Problem,
     r: Result,
     moved: list[str],
-    placed: np.ndarray | None,
+    placed: list[np.ndarray],
     effort: float,
     seed: int,
     stay: Sequence[str],
@@ -611,10 +650,12 @@ def _finish(
     reach: Reach | None,
     o: TidyOptions,
 ) -> TidyResult:
-    """Refine the moved objects alone (from the selection's pruned poses ``r.poses`` and from ``placed``,
-    their missing-object placement; the one with the lower whole cost is kept), plan the moves."""
+    """Choose among the selection's pruned poses ``r.poses`` and the ``placed`` candidates (the
+    missing-object placement of the moved objects, and of each subset one smaller) the one that violates
+    the constraints least at the lowest whole cost; refine its moved objects alone; plan the moves."""
     current = scene.poses()
     x = r.poses
+    tol = o.move_tol * model.config.length_scale  # metres
     final = tidy_problem(model, scene, effort, stay, weights, reach, o, movable=moved or problem.movable)
 
     def worse(a: np.ndarray, b: np.ndarray) -> bool:
@@ -624,8 +665,13 @@ def _finish(
             return True
         return va >= vb - 1e-12 and float(_cost(final, a[None])[0]) > float(_cost(final, b[None])[0])
 
-    if moved and placed is not None and not worse(placed, x):
-        x = placed
+    for alt in placed:
+        if not worse(alt, x):
+            x = alt
+    if moved:
+        moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > tol]
+        x = np.where((_moves(scene, x) > tol)[:, None], x, current)
+        final = tidy_problem(model, scene, effort, stay, weights, reach, o, movable=moved or problem.movable)
     if moved and o.refine:
         # the moved objects alone, every other one exactly where it is; by the energy and the constraints
         # without the effort: the selection chose which objects move and to which spot, and a pull back

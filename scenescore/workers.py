@@ -11,12 +11,16 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from multiprocessing import get_context
 from multiprocessing.pool import Pool
+from typing import Any, TypeVar
 
-__all__ = ["worker_pool", "PARENT_POLL_S"]
+__all__ = ["worker_pool", "map_in_workers", "PARENT_POLL_S"]
+
+T = TypeVar("T")
+Log = Callable[[str], None]
 
 PARENT_POLL_S = 0.5  # how often a worker checks that its parent still runs
 
@@ -46,3 +50,31 @@ def worker_pool(jobs: int) -> Iterator[Pool]:
         pool.close()
     finally:
         pool.join()
+
+
+def map_in_workers(fn: Callable[..., T], items: Sequence[Any], jobs: int = 1, log: Log = print) -> list[T]:
+    """``fn(item, log)`` for each of ``items``, in order. With ``jobs > 1``, in that many worker
+    processes of one torch thread each (``fn`` must pickle: a module-level function or a
+    :func:`functools.partial` of one); each item's log lines are printed when it finishes, and its
+    result does not depend on ``jobs``."""
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if jobs == 1 or len(items) <= 1:
+        return [fn(item, log) for item in items]
+    done: dict[int, T] = {}
+    with worker_pool(min(jobs, len(items))) as pool:
+        for k, value, lines in pool.imap_unordered(_one, [(fn, k, item) for k, item in enumerate(items)]):
+            for line in lines:
+                log(line)
+            done[k] = value
+    return [done[k] for k in range(len(items))]
+
+
+def _one(task: tuple[Callable[..., Any], int, Any]) -> tuple[int, Any, list[str]]:
+    """One item of :func:`map_in_workers` in a worker, on one torch thread; its log lines returned."""
+    import torch
+
+    torch.set_num_threads(1)
+    fn, k, item = task
+    lines: list[str] = []
+    return k, fn(item, lines.append), lines

@@ -25,6 +25,7 @@ from scenescore.tidy import (
     TidyOptions,
     calibrate,
     count_weight,
+    effort_weights,
     move_gains,
     object_gains,
     plan_moves,
@@ -32,6 +33,7 @@ from scenescore.tidy import (
     tidy_problem,
     validate_plan,
 )
+from scenescore.tidy import _placed as T_placed
 from scenescore.tidy import _select as T_select
 
 torch.set_num_threads(1)
@@ -94,6 +96,16 @@ def test_a_target_on_an_object_that_stays_is_an_error():
     after = before.with_poses([[0.2, 0.05, 0.0]], ["red"])
     with pytest.raises(TidyError, match="'red''s target overlaps 'wall', which does not move"):
         plan_moves(before, after)
+
+
+def _flat_model() -> ScoreModel:
+    """A model whose learned energy is flat: a hand-made cost added to its problem is the only preference."""
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    with torch.no_grad():
+        for prm in model.net.parameters():
+            prm.zero_()
+    return model
 
 
 def _quick() -> TidyOptions:
@@ -179,11 +191,7 @@ def test_the_selection_moves_only_the_object_that_is_out_of_place():
     away is put back; red, already right, stays exactly where it is; at a large effort nothing moves."""
     from scenescore.costs import PoseTarget
 
-    torch.manual_seed(0)
-    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
-    with torch.no_grad():
-        for prm in model.net.parameters():
-            prm.zero_()  # a flat learned energy: the target below is the only preference
+    model = _flat_model()  # the target below is the only preference
     scene = _two(a=(-0.2, 0.0), b=(0.3, 0.3))
     chain = replace(PLACEMENT, steps=2, final_descent=1)
     o = TidyOptions(propose=LangevinOptions(particles=256, chain=chain))
@@ -276,11 +284,7 @@ def _swapped_wells(pairs: int) -> tuple[list[str], np.ndarray]:
     which objects the selection moved (with ``PAIR_CANDIDATES = pairs``) and the poses."""
     from scenescore.costs import CostFn
 
-    torch.manual_seed(0)
-    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
-    with torch.no_grad():
-        for prm in model.net.parameters():
-            prm.zero_()
+    model = _flat_model()
     scene = Scene(
         [
             SceneObject("red", "box", (0.4, 0.4), (-0.3, 0.0, 0.0)),
@@ -315,3 +319,70 @@ def test_the_selection_moves_a_swapped_pair_that_no_single_move_fixes():
     moved, x = _swapped_wells(pairs=5)
     assert sorted(moved) == ["blue", "red"]
     assert np.hypot(*(x[0, :2] - [0.3, 0.0])) < 0.15 and np.hypot(*(x[1, :2] - [-0.3, 0.0])) < 0.15
+
+
+def test_effort_weights_charge_larger_objects_more_and_keep_the_users():
+    table = SceneObject("table", "table", (2.0, 2.0), (0.0, 0.0, 0.0), fixed=True)
+    scene = Scene(
+        [
+            table,
+            SceneObject("plate", "plate", (0.3, 0.3), (0.0, 0.0, 0.0)),
+            SceneObject("bowl", "bowl", (0.1, 0.1), (0.3, 0.0, 0.0)),
+            SceneObject("knife", "knife", (0.2, 0.02), (-0.3, 0.0, 0.0)),
+        ],
+        bounds=((-1.5, -1.5), (1.5, 1.5)),
+    )
+    w = effort_weights(scene)
+    assert w is not None
+    # the median area is the bowl's (the fixed table does not count): the plate 3x as wide costs 3x
+    assert w["plate"] == pytest.approx(3.0) and w["bowl"] == 1.0 and w["knife"] == 1.0
+    w = effort_weights(scene, {"knife": 2.0, "plate": 0.5})
+    assert w is not None and w["knife"] == 2.0 and w["plate"] == pytest.approx(1.5)
+    assert effort_weights(scene, {"knife": 2.0}, TidyOptions(by_size=False)) == {"knife": 2.0}
+    assert effort_weights(scene, None, TidyOptions(by_size=False)) is None
+    with pytest.raises(ConfigError, match="TidyOptions: by_size: expected true or false"):
+        TidyOptions(by_size=1)  # type: ignore[arg-type]
+
+
+def _relation_tie(weights: dict[str, float] | None) -> list[str]:
+    """A hand-made relational energy: blue belongs 0.3 m right of red, wherever red is. Moving either one
+    by the same vector fixes it, at the same displacement; only the effort weights tell them apart.
+    Returns which objects the selection moved."""
+    from scenescore.costs import CostFn
+
+    model = _flat_model()
+    scene = Scene(
+        [
+            SceneObject("red", "box", (0.3, 0.3), (-0.2, -0.1, 0.0)),
+            SceneObject("blue", "box", (0.1, 0.1), (0.3, 0.2, 0.0)),
+        ],
+        bounds=((-0.7, -0.7), (0.7, 0.7)),
+    )
+
+    def relation(x: torch.Tensor) -> torch.Tensor:
+        off = x[..., 1, :2] - x[..., 0, :2] - torch.tensor([0.3, 0.0], dtype=x.dtype)  # (B, 2)
+        return 50.0 * (off**2).sum(-1)
+
+    chain = replace(PLACEMENT, steps=2, final_descent=1)
+    o = TidyOptions(propose=LangevinOptions(particles=512, chain=chain))
+    prob = tidy_problem(model, scene, 1.0, weights=weights, options=o)
+    problem = Problem(scene, prob.cost + CostFn(relation, name="relation"), movable=prob.movable)
+    x = T_select(model, [scene], [problem], o, seed=0)[0]
+    return [n for i, n in enumerate(scene.names) if not np.array_equal(x[i], scene.poses()[i])]
+
+
+def test_the_smaller_end_of_a_relation_is_the_one_moved():
+    assert _relation_tie(None) == ["blue"]  # red is 3x as wide: it costs more to move
+    assert _relation_tie({"blue": 6.0}) == ["red"]  # unless the user says blue is the costly one
+
+
+def test_the_placement_candidates_leave_each_moved_object_out_in_turn():
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    scene = _two(a=(-0.3, 0.1), b=(0.3, -0.1))
+    now = scene.poses()
+    one, two, none = T_placed(model, [scene, scene, scene], [["red"], ["red", "blue"], []], seed=0)
+    assert len(one) == 1 and len(two) == 3 and none == []
+    assert np.array_equal(one[0][1], now[1])  # blue, not in the set, stays exactly
+    # the whole set placed, then the set with red left where it is, then with blue left where it is
+    assert np.array_equal(two[1][0], now[0]) and np.array_equal(two[2][1], now[1])

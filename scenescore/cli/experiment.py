@@ -47,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--jobs",
         type=int,
         default=1,
-        help="zoo: worker processes, one thread each (default 1; up to the number of cores pays)",
+        help="worker processes, one thread each (default 1; up to the number of cores pays): compose, "
+        "missing and novel run their seeds in them, zoo its scenario and seed pairs, tidy its scenarios",
     )
     p.add_argument(
         "--energy-only",
@@ -157,6 +158,7 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         scenes_fn=scenes_fn,
         encoder=encoder,
         device=args.device,
+        jobs=args.jobs,
     )
     md = (
         "## Table 1: missing objects"
@@ -212,6 +214,7 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         encoders=encoders,
         scenes_fn=scenes_fn,
         device=args.device,
+        jobs=args.jobs,
     )
     md = (
         "## Table 2: novel objects (ordered rows of cutlery)"
@@ -251,6 +254,7 @@ def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         quick=args.quick,
         progress=not args.quiet,
         device=args.device,
+        jobs=args.jobs,
     )
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
@@ -305,7 +309,10 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
 
 def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
+    import json
+
     from ..experiments import tidy
+    from ..scene import atomic_write_text
     from ..training import TrainConfig
 
     names = tuple(args.scenarios.split(",")) if args.scenarios else tidy.SCENARIOS
@@ -319,8 +326,17 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         raise UserError(f"--test-scenes must be at least 1, got {test_scenes}")
     cfg = TrainConfig(iterations=iterations) if iterations else TrainConfig()
     log = (lambda s: None) if args.quiet else print
-    res = tidy.run(names, test_scenes=test_scenes, seed=args.seed, config=cfg, log=log, device=args.device)
+    res = tidy.run(
+        names,
+        test_scenes=test_scenes,
+        seed=args.seed,
+        config=cfg,
+        log=log,
+        device=args.device,
+        jobs=args.jobs,
+    )
     out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "cases.json", json.dumps(res.per_case(), indent=1) + "\n")
     tidy.plot_pareto(res, out / "pareto.png")
     md = "## Tidying messy scenes\n\n"
     md += (
@@ -334,7 +350,8 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     )
     md += (
         tidy.format_tidy(res)
-        + "\n\nFigure: pareto.png (accepted against displacement as the effort weight varies)."
+        + "\n\nFigure: pareto.png (accepted against displacement as the effort weight varies). Every case, "
+        "with what each method moved and whether the check accepted it: cases.json."
     )
     return md, res.rows()
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -38,6 +39,7 @@ import numpy as np
 from ..scenarios.tv import TVScenario
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
+from ..workers import map_in_workers
 from .report import Row, format_table
 
 if TYPE_CHECKING:
@@ -144,14 +146,12 @@ def run(
     refine: int | None = None,
     log: Callable[[str], None] = print,
     device: Any = None,
+    jobs: int = 1,
 ) -> ComposeResult:
     """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level;
-    SceneScore's model and problems on ``device`` (NeatNet on the CPU)."""
-    import torch
-
-    from ..baselines import NeatNet, NeatNetConfig
-    from ..solvers import get, solve
-
+    SceneScore's model and problems on ``device`` (NeatNet on the CPU). ``jobs > 1`` runs the seeds in
+    that many worker processes of one thread each (the counts do not depend on it; seconds are summed
+    over the workers)."""
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -162,81 +162,118 @@ def run(
     per_scene = max(1, samples // n_scenes)
     samples = per_scene * n_scenes
     k_refine = refine if refine is not None else (1 if quick else 4)
-    scenario = TVScenario()
     res = ComposeResult(levels, samples, k_refine * n_scenes)
-    ss_methods = [m for m in chosen if m != "NeatNet"]
-    for seed in range(seeds):
-        train_s, test_s = scenario.split(seed)
-        model = None
-        if ss_methods:
-            t0 = time.perf_counter()
-            model = train_energy(train_s, seed, quick, progress, device)
-            dt = time.perf_counter() - t0
-            for m in ss_methods:
-                res.seconds[m] = res.seconds.get(m, 0.0) + dt
-        nn = None
-        if "NeatNet" in chosen:
-            t0 = time.perf_counter()
-            nn = NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)).fit(train_s, seed)
-            res.seconds["NeatNet"] = res.seconds.get("NeatNet", 0.0) + time.perf_counter() - t0
-        counts: dict[str, list[float]] = {m: [] for m in chosen}
-        uniq: dict[str, list[float]] = {m: [] for m in chosen}
-        for n in levels:
-            got = dict.fromkeys(chosen, 0.0)
-            dis = dict.fromkeys(chosen, 0.0)
-            for k in range(n_scenes):
-                scene = scenario.clutter(test_s[k % len(test_s)], n, seed=1000 * seed + 10 * n + k)
-                if nn is not None:
-                    t0 = time.perf_counter()
-                    c, d = _correct(scenario, scene, nn.sample(scene, per_scene, seed=k))
-                    got["NeatNet"] += c
-                    dis["NeatNet"] += d
-                    res.seconds["NeatNet"] += time.perf_counter() - t0
-                if model is None:
-                    continue
-                prob = tv_problem(scene, model)
-                t0 = time.perf_counter()
-                r = solve(prob, "langevin", seed=k, options={"langevin": langevin_options(per_scene)})
-                t_lan = time.perf_counter() - t0
-                for m in ss_methods:
-                    res.seconds[m] += t_lan
-                if "SceneScore" in chosen:
-                    assert r.samples is not None
-                    c, d = _correct(scenario, scene, r.samples)
-                    got["SceneScore"] += c
-                    dis["SceneScore"] += d
-                if BATCHED in chosen:
-                    t0 = time.perf_counter()
-                    assert r.samples is not None
-                    rr = get("alm", polish=False).solve(prob, init=torch.as_tensor(r.samples))
-                    res.seconds[BATCHED] += time.perf_counter() - t0
-                    assert rr.samples is not None
-                    c, d = _correct(scenario, scene, rr.samples)
-                    got[BATCHED] += c
-                    dis[BATCHED] += d
-                for m, stage in CHAINS.items():
-                    if m not in chosen:
-                        continue
-                    solver = get(stage)
-                    t0 = time.perf_counter()
-                    assert r.samples is not None
-                    refined = [
-                        solver.solve(prob, init=torch.as_tensor(r.samples[j]), seed=j).poses
-                        for j in range(min(k_refine, len(r.samples)))
-                    ]
-                    res.seconds[m] += time.perf_counter() - t0
-                    c, d = _correct(scenario, scene, np.asarray(refined))
-                    got[m] += c
-                    dis[m] += d
-            for m in chosen:
-                counts[m].append(got[m])
-                uniq[m].append(dis[m])
-            if progress:
-                log(f"seed {seed} clutter {n}: " + ", ".join(f"{m} {counts[m][-1]:.0f}" for m in chosen))
+    one = partial(
+        _seed,
+        chosen=list(chosen),
+        levels=list(levels),
+        n_scenes=n_scenes,
+        per_scene=per_scene,
+        k_refine=k_refine,
+        quick=quick,
+        progress=progress,
+        bars=progress and jobs == 1,
+        device=device,
+    )
+    for counts, uniq, seconds in map_in_workers(one, list(range(seeds)), jobs, log):
         for m in chosen:
             res.correct.setdefault(m, []).append(counts[m])
             res.distinct.setdefault(m, []).append(uniq[m])
+            res.seconds[m] = res.seconds.get(m, 0.0) + seconds.get(m, 0.0)
     return res
+
+
+def _seed(
+    seed: int,
+    log: Callable[[str], None],
+    chosen: list[str],
+    levels: list[int],
+    n_scenes: int,
+    per_scene: int,
+    k_refine: int,
+    quick: bool,
+    progress: bool,
+    bars: bool,
+    device: Any,
+) -> tuple[dict[str, list[float]], dict[str, list[float]], dict[str, float]]:
+    """One seed of :func:`run`: per method, correct and distinct correct samples per clutter level, and
+    seconds (``progress``: a log line per level; ``bars``: training's progress bar)."""
+    import torch
+
+    from ..baselines import NeatNet, NeatNetConfig
+    from ..solvers import get, solve
+
+    scenario = TVScenario()
+    seconds: dict[str, float] = {}
+    ss_methods = [m for m in chosen if m != "NeatNet"]
+    train_s, test_s = scenario.split(seed)
+    model = None
+    if ss_methods:
+        t0 = time.perf_counter()
+        model = train_energy(train_s, seed, quick, bars, device)
+        dt = time.perf_counter() - t0
+        for m in ss_methods:
+            seconds[m] = seconds.get(m, 0.0) + dt
+    nn = None
+    if "NeatNet" in chosen:
+        t0 = time.perf_counter()
+        nn = NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)).fit(train_s, seed)
+        seconds["NeatNet"] = seconds.get("NeatNet", 0.0) + time.perf_counter() - t0
+    counts: dict[str, list[float]] = {m: [] for m in chosen}
+    uniq: dict[str, list[float]] = {m: [] for m in chosen}
+    for n in levels:
+        got = dict.fromkeys(chosen, 0.0)
+        dis = dict.fromkeys(chosen, 0.0)
+        for k in range(n_scenes):
+            scene = scenario.clutter(test_s[k % len(test_s)], n, seed=1000 * seed + 10 * n + k)
+            if nn is not None:
+                t0 = time.perf_counter()
+                c, d = _correct(scenario, scene, nn.sample(scene, per_scene, seed=k))
+                got["NeatNet"] += c
+                dis["NeatNet"] += d
+                seconds["NeatNet"] += time.perf_counter() - t0
+            if model is None:
+                continue
+            prob = tv_problem(scene, model)
+            t0 = time.perf_counter()
+            r = solve(prob, "langevin", seed=k, options={"langevin": langevin_options(per_scene)})
+            t_lan = time.perf_counter() - t0
+            for m in ss_methods:
+                seconds[m] += t_lan
+            if "SceneScore" in chosen:
+                assert r.samples is not None
+                c, d = _correct(scenario, scene, r.samples)
+                got["SceneScore"] += c
+                dis["SceneScore"] += d
+            if BATCHED in chosen:
+                t0 = time.perf_counter()
+                assert r.samples is not None
+                rr = get("alm", polish=False).solve(prob, init=torch.as_tensor(r.samples))
+                seconds[BATCHED] += time.perf_counter() - t0
+                assert rr.samples is not None
+                c, d = _correct(scenario, scene, rr.samples)
+                got[BATCHED] += c
+                dis[BATCHED] += d
+            for m, stage in CHAINS.items():
+                if m not in chosen:
+                    continue
+                solver = get(stage)
+                t0 = time.perf_counter()
+                assert r.samples is not None
+                refined = [
+                    solver.solve(prob, init=torch.as_tensor(r.samples[j]), seed=j).poses
+                    for j in range(min(k_refine, len(r.samples)))
+                ]
+                seconds[m] += time.perf_counter() - t0
+                c, d = _correct(scenario, scene, np.asarray(refined))
+                got[m] += c
+                dis[m] += d
+        for m in chosen:
+            counts[m].append(got[m])
+            uniq[m].append(dis[m])
+        if progress:
+            log(f"seed {seed} clutter {n}: " + ", ".join(f"{m} {counts[m][-1]:.0f}" for m in chosen))
+    return counts, uniq, seconds
 
 
 def format_compose(res: ComposeResult) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
+from functools import partial
 from typing import Any
 
 from ..encoders import Encoder
@@ -18,6 +19,7 @@ from ..placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
 from ..scene import Scene, SceneError
 from ..training import RAW_EDGES, TrainConfig
+from ..workers import map_in_workers
 from .report import SeedResults, format_table
 
 __all__ = ["PAPER", "fit_predict", "run", "METHODS", "EXTRA_METHODS"]
@@ -88,34 +90,66 @@ def run(
     log: Callable[[str], None] = print,
     encoder: Encoder | None = None,
     device: Any = None,
+    jobs: int = 1,
 ) -> MissingResult:
     """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs;
-    ``device``: where SceneScore's models train and place (the baselines stay on the CPU)."""
-    scenario = DiningScenario()
-    table = _methods(scenario, quick, encoder, device)
+    ``device``: where SceneScore's models train and place (the baselines stay on the CPU). ``jobs > 1``
+    runs each method on each seed in one of that many worker processes of one thread each (the figures
+    do not depend on it); with ``scenes_fn`` (a function of this process) they run here, in turn."""
+    table = _methods(DiningScenario(), quick, encoder, device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]
     if unknown:
         raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")
+    one = partial(
+        _one,
+        quick=quick,
+        progress=progress and (jobs == 1 or scenes_fn is not None),
+        scenes_fn=scenes_fn,
+        encoder=encoder,
+        device=device,
+        graphs={},
+    )
+    tasks = [(seed, m) for seed in range(seeds) for m in chosen]
     res = MissingResult()
-    for seed in range(seeds):
-        train_s, test_s = scenario.split(seed)
-        truth_cases = make_cases(test_s, scenario.missing)
-        if scenes_fn is not None:
-            train_s, test_s = scenes_fn(train_s, test_s)
-        cases = make_cases(test_s, scenario.missing)
-        # the truth is always the simulator's pose, whatever graph the method sees
-        for c, tc in zip(cases, truth_cases):
-            c.truth = tc.truth
-        for m in chosen:
-            pred, dt = fit_predict(table[m], train_s, cases, seed, progress)
-            figs = score_cases(cases, pred, scenario.symmetric)
-            res.per_seed.setdefault(m, []).append(figs)
-            res.seconds[m] = res.seconds.get(m, 0.0) + dt
-            log(
-                f"seed {seed} {m:24s} mean t {figs['mean_t_cm']:.2f} cm  R {figs['mean_R_deg']:.1f} deg  ({dt:.0f} s)"
-            )
+    for (_, m), (figs, dt) in zip(
+        tasks, map_in_workers(one, tasks, 1 if scenes_fn is not None else jobs, log)
+    ):
+        res.per_seed.setdefault(m, []).append(figs)
+        res.seconds[m] = res.seconds.get(m, 0.0) + dt
     return res
+
+
+def _one(
+    task: tuple[int, str],
+    log: Callable[[str], None],
+    quick: bool,
+    progress: bool,
+    scenes_fn: Callable[[list[Scene], list[Scene]], tuple[list[Scene], list[Scene]]] | None,
+    encoder: Encoder | None,
+    device: Any,
+    graphs: dict[int, tuple[list[Scene], list[Scene]]],
+) -> tuple[dict[str, float], float]:
+    """One method on one seed of :func:`run`: its figures and seconds (``graphs``: each seed's scenes
+    from ``scenes_fn``, made once for every method)."""
+    seed, m = task
+    scenario = DiningScenario()
+    train_s, test_s = scenario.split(seed)
+    truth_cases = make_cases(test_s, scenario.missing)
+    if scenes_fn is not None:
+        if seed not in graphs:
+            graphs[seed] = scenes_fn(train_s, test_s)
+        train_s, test_s = graphs[seed]
+    cases = make_cases(test_s, scenario.missing)
+    # the truth is always the simulator's pose, whatever graph the method sees
+    for c, tc in zip(cases, truth_cases):
+        c.truth = tc.truth
+    pred, dt = fit_predict(_methods(scenario, quick, encoder, device)[m], train_s, cases, seed, progress)
+    figs = score_cases(cases, pred, scenario.symmetric)
+    log(
+        f"seed {seed} {m:24s} mean t {figs['mean_t_cm']:.2f} cm  R {figs['mean_R_deg']:.1f} deg  ({dt:.0f} s)"
+    )
+    return figs, dt
 
 
 def table_columns() -> list[tuple[str, str]]:

@@ -16,6 +16,7 @@ import importlib.util
 import math
 import os
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,7 @@ from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
 from ..training import TrainConfig
+from ..workers import map_in_workers
 from .missing import fit_predict
 from .report import Row, SeedResults, format_table
 
@@ -170,6 +172,7 @@ def run(
     encoders: Sequence[Encoder] | None = None,
     scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None = None,
     device: Any = None,
+    jobs: int = 1,
     **scenario: Any,
 ) -> NovelResult:
     """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests.
@@ -178,43 +181,74 @@ def run(
     ``scenes_fn(train, test, encoder)``: the graphs the methods see instead of the ground truth, built
     with ``encoder`` (SceneScore's rows each with their own; the other methods with the first's).
     ``device``: where SceneScore's models train and place (the baselines stay on the CPU).
+    ``jobs > 1`` runs each method on each seed and rule in one of that many worker processes of one
+    thread each (the figures do not depend on it); with ``encoders`` or ``scenes_fn`` (objects of this
+    process) they run here, in turn.
     """
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
     chosen = _chosen(methods or default_methods(log), encoders)
-    by_row = {scenescore_row(e): i for i, e in enumerate(encoders or [])}
+    for rule in rules:
+        table = _methods(OrderingScenario(rule=rule, **scenario), quick, encoders, device)
+        unknown = [m for m in chosen if m not in table]
+        if unknown:
+            raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")
+    here = bool(encoders) or scenes_fn is not None
+    one = partial(
+        _one,
+        quick=quick,
+        progress=progress and (jobs == 1 or here),
+        n_test=n_test,
+        encoders=encoders,
+        scenes_fn=scenes_fn,
+        device=device,
+        scenario=scenario,
+        graphs={},
+    )
+    tasks = [(seed, rule, m) for seed in range(seeds) for rule in rules for m in chosen]
+    errors = dict(zip(tasks, map_in_workers(one, tasks, 1 if here else jobs, log)))
     res = NovelResult()
     for seed in range(seeds):
-        figs: dict[str, dict[str, float]] = {m: {} for m in chosen}
-        for rule in rules:
-            sc = OrderingScenario(rule=rule, **scenario)
-            table = _methods(sc, quick, encoders, device)
-            unknown = [m for m in chosen if m not in table]
-            if unknown:
-                raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")
-            train_s, test_s = sc.split(seed)
-            if n_test is not None:
-                test_s = test_s[:n_test]
-            cases = make_cases(test_s, sc.missing)
-            derived: dict[int, tuple[list[Scene], list[MissingCase]]] = {}
-            for m in chosen:
-                train_m, cases_m = train_s, cases
-                if scenes_fn is not None and encoders:
-                    k = by_row.get(m, 0)
-                    if k not in derived:
-                        derived[k] = _derived_cases(
-                            scenes_fn(train_s, test_s, encoders[k]), cases, sc.missing
-                        )
-                    train_m, cases_m = derived[k]
-                pred, dt = fit_predict(table[m], train_m, cases_m, seed, progress)
-                err = position_error_cm(cases_m, pred)
-                figs[m][f"{rule}_cm"] = err
-                res.seconds[m] = res.seconds.get(m, 0.0) + dt
-                log(f"seed {seed} {rule:13s} {m:12s} {err:6.2f} cm  ({dt:.0f} s)")
         for m in chosen:
-            figs[m]["mean_cm"] = float(np.mean([figs[m][f"{r}_cm"] for r in rules]))
-            res.per_seed.setdefault(m, []).append(figs[m])
+            figs = {f"{rule}_cm": errors[(seed, rule, m)][0] for rule in rules}
+            figs["mean_cm"] = float(np.mean(list(figs.values())))
+            res.per_seed.setdefault(m, []).append(figs)
+            res.seconds[m] = res.seconds.get(m, 0.0) + sum(errors[(seed, rule, m)][1] for rule in rules)
     return res
+
+
+def _one(
+    task: tuple[int, str, str],
+    log: Callable[[str], None],
+    quick: bool,
+    progress: bool,
+    n_test: int | None,
+    encoders: Sequence[Encoder] | None,
+    scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None,
+    device: Any,
+    scenario: dict[str, Any],
+    graphs: dict[tuple[int, str, int], tuple[list[Scene], list[MissingCase]]],
+) -> tuple[float, float]:
+    """One method on one seed and rule of :func:`run`: its position error (cm) and seconds (``graphs``:
+    the derived cases per seed, rule and encoder, made once for every method)."""
+    seed, rule, m = task
+    sc = OrderingScenario(rule=rule, **scenario)
+    train_s, test_s = sc.split(seed)
+    if n_test is not None:
+        test_s = test_s[:n_test]
+    cases = make_cases(test_s, sc.missing)
+    train_m, cases_m = train_s, cases
+    if scenes_fn is not None and encoders:
+        k = {scenescore_row(e): i for i, e in enumerate(encoders)}.get(m, 0)
+        if (seed, rule, k) not in graphs:
+            graphs[(seed, rule, k)] = _derived_cases(
+                scenes_fn(train_s, test_s, encoders[k]), cases, sc.missing
+            )
+        train_m, cases_m = graphs[(seed, rule, k)]
+    pred, dt = fit_predict(_methods(sc, quick, encoders, device)[m], train_m, cases_m, seed, progress)
+    err = position_error_cm(cases_m, pred)
+    log(f"seed {seed} {rule:13s} {m:12s} {err:6.2f} cm  ({dt:.0f} s)")
+    return err, dt
 
 
 def table_columns(rules: tuple[str, ...] = RULES) -> list[tuple[str, str]]:

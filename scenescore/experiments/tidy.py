@@ -23,6 +23,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, cast
 
 import numpy as np
@@ -36,6 +37,7 @@ from ..scene import Scene, SceneError, wrap_angle
 from ..solvers.langevin import LangevinOptions
 from ..tidy import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
 from ..training import TrainConfig, train
+from ..workers import map_in_workers
 from .report import Row, format_table
 
 __all__ = [
@@ -261,6 +263,30 @@ class TidyRun:
             **({"plans_valid": float(np.mean([o.plan_valid for o in made]))} if made else {}),
         }
 
+    def per_case(self) -> list[dict[str, Any]]:
+        """Every case with each method's outcome on it (for ``cases.json``): which objects were displaced
+        and how, which each method moved, whether the scenario's check accepted the result."""
+        out = []
+        for j, c in enumerate(self.cases):
+            out.append(
+                {
+                    "scenario": c.scenario,
+                    "kind": c.kind,
+                    "size": c.size,
+                    "displaced": c.displaced,
+                    "methods": {
+                        m: {
+                            "moved": sorted(got[j].moved),
+                            "accepted": bool(got[j].accepted),
+                            "displacement_m": round(float(got[j].displacement), 4),
+                            "plan_valid": bool(got[j].plan_valid),
+                        }
+                        for m, got in self.outcomes.items()
+                    },
+                }
+            )
+        return out
+
     def rows(self, select: Callable[[MessyCase], bool] = lambda c: True) -> list[Row]:
         out = []
         for m in self.outcomes:
@@ -287,69 +313,117 @@ def run(
     options: TidyOptions | None = None,
     place_options: LangevinOptions | None = None,
     device: Any = None,
+    jobs: int = 1,
 ) -> TidyRun:
     """Train per scenario (on ``device``), make the messy cases, run every method on them (``options``:
-    tidy's, ``place_options``: the baselines' placement; defaults: the library's)."""
+    tidy's, ``place_options``: the baselines' placement; defaults: the library's). ``jobs > 1`` runs the
+    scenarios in that many worker processes of one thread each (the figures do not depend on it; each
+    method's seconds are then summed over the workers)."""
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise SceneError(f"tidy experiment: jobs must be a whole number >= 1, got {jobs!r}")
+    for name in scenarios:
+        get(name)  # an unknown name fails here, before any worker starts
+    one = partial(
+        _scenario,
+        efforts=tuple(efforts),
+        test_scenes=test_scenes,
+        seed=seed,
+        config=config,
+        sizes=tuple(sizes),
+        options=options,
+        place_options=place_options,
+        device=device,
+        progress=progress and jobs == 1,
+    )
+    parts = dict(zip(scenarios, map_in_workers(one, list(scenarios), jobs, log)))
+    res = TidyRun(efforts=tuple(efforts))
+    for name in scenarios:  # in the order asked, whatever order the workers finished in
+        part = parts[name]
+        res.cases += part.cases
+        for m, got in part.outcomes.items():
+            res.outcomes.setdefault(m, []).extend(got)
+            res.seconds[m] = res.seconds.get(m, 0.0) + part.seconds[m]
+    return res
+
+
+def _scenario(name: str, log: Callable[[str], None], **kw: Any) -> TidyRun:
+    """:func:`run_scenario` with the argument order :func:`~scenescore.workers.map_in_workers` calls."""
+    return run_scenario(name, log=log, **kw)
+
+
+def run_scenario(
+    name: str,
+    efforts: tuple[float, ...],
+    test_scenes: int,
+    seed: int,
+    config: TrainConfig | None,
+    sizes: tuple[float, ...],
+    options: TidyOptions | None,
+    place_options: LangevinOptions | None,
+    device: Any,
+    log: Callable[[str], None] = print,
+    progress: bool = False,
+) -> TidyRun:
+    """One scenario of :func:`run`: its cases and every method's outcomes and seconds."""
     res = TidyRun(efforts=tuple(efforts))
     methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
     for m in methods:
         res.outcomes[m] = []
         res.seconds[m] = 0.0
-    for name in scenarios:
-        sc = get(name)
-        t0 = time.perf_counter()
-        train_s, test_s = sc.split(seed)
-        model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device)
-        held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
-        gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
-        cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
-        if not cases:
-            raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
-        log(
-            f"{name}: trained in {time.perf_counter() - t0:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases"
-        )
-        res.cases += cases
-        messy = [c.messy for c in cases]
-        for e in efforts:
-            t = time.perf_counter()
-            results = tidy_many(model, messy, effort=e, seed=seed, options=options)
-            res.seconds[method_name(e)] += time.perf_counter() - t
-            for c, r in zip(cases, results):
-                out = Outcome(
-                    accepts(sc, r.after, c.truth),
-                    list(r.moved),
-                    r.total_displacement,
-                    len(r.steps),
-                    r.check.valid,
-                    r.buffers,
-                    r.plan_made,
-                )
-                res.outcomes[method_name(e)].append(out)
-            log(f"{name}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+    sc = get(name)
+    t0 = time.perf_counter()
+    train_s, test_s = sc.split(seed)
+    model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device)
+    held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
+    gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
+    cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
+    if not cases:
+        raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
+    log(
+        f"{name}: trained in {time.perf_counter() - t0:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases"
+    )
+    res.cases += cases
+    messy = [c.messy for c in cases]
+    for e in efforts:
         t = time.perf_counter()
-        blank = [c.messy.copy() for c in cases]
-        for s in blank:
-            for o in s.objects:
-                if not o.fixed:
-                    o.pose = None
-        placed = place_many(model, blank, place_options, seed=seed)
-        res.seconds["re-place all"] += time.perf_counter() - t
-        res.outcomes["re-place all"] += [
-            _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, placed)
-        ]
-        t = time.perf_counter()
-        holes = []
-        for c in cases:
-            s = c.messy.copy()
-            for n in c.displaced:
-                s.objects[s.index(n)].pose = None
-            holes.append(s)
-        filled = place_many(model, holes, place_options, seed=seed)
-        res.seconds["missing placement"] += time.perf_counter() - t
-        res.outcomes["missing placement"] += [
-            _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, filled)
-        ]
-        log(f"{name}: baselines {time.perf_counter() - t:.0f} s")
+        results = tidy_many(model, messy, effort=e, seed=seed, options=options)
+        res.seconds[method_name(e)] += time.perf_counter() - t
+        for c, r in zip(cases, results):
+            out = Outcome(
+                accepts(sc, r.after, c.truth),
+                list(r.moved),
+                r.total_displacement,
+                len(r.steps),
+                r.check.valid,
+                r.buffers,
+                r.plan_made,
+            )
+            res.outcomes[method_name(e)].append(out)
+        log(f"{name}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+    t = time.perf_counter()
+    blank = [c.messy.copy() for c in cases]
+    for s in blank:
+        for o in s.objects:
+            if not o.fixed:
+                o.pose = None
+    placed = place_many(model, blank, place_options, seed=seed)
+    res.seconds["re-place all"] += time.perf_counter() - t
+    res.outcomes["re-place all"] += [
+        _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, placed)
+    ]
+    t = time.perf_counter()
+    holes = []
+    for c in cases:
+        s = c.messy.copy()
+        for n in c.displaced:
+            s.objects[s.index(n)].pose = None
+        holes.append(s)
+    filled = place_many(model, holes, place_options, seed=seed)
+    res.seconds["missing placement"] += time.perf_counter() - t
+    res.outcomes["missing placement"] += [
+        _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, filled)
+    ]
+    log(f"{name}: baselines {time.perf_counter() - t:.0f} s")
     return res
 
 

@@ -211,3 +211,16 @@ def test_options_for_stages_the_chosen_chain_skips_are_named(capsys):
     assert "p.yaml" in err and "osqp" in err and "langevin" in err.split("used by")[1]
     _warn_unused_options("p.yaml", {"langevin": {}, "osqp": {}}, ["langevin", "langevin>osqp"])
     assert capsys.readouterr().err == ""
+
+
+def test_experiment_tidy_quick_writes_every_case(tmp_path):
+    torch.set_num_threads(1)
+    out = tmp_path / "tidy"
+    argv = ["experiment", "tidy", "--quick", "--scenarios", "desk", "--iterations", "2"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    cases = json.loads((out / "cases.json").read_text())
+    rows = json.loads((out / "results.json").read_text())
+    assert cases and rows[0]["cases"] == len(cases)
+    assert {"tidy (effort 1) default", "re-place all", "missing placement"} <= set(cases[0]["methods"])
+    assert all(c["scenario"] == "desk" and c["displaced"] for c in cases)
+    assert (out / "pareto.png").stat().st_size > 1000 and "cases.json" in (out / "table.md").read_text()

@@ -25,3 +25,16 @@ def test_compose_quick_rows_and_plot(tmp_path):
     assert "1 samples per clutter level" in per_solve
     compose.plot_compose(res, tmp_path / "fig4.png")
     assert (tmp_path / "fig4.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.slow
+def test_compose_seeds_in_worker_processes_give_the_same_counts():
+    torch.set_num_threads(1)
+    kw = dict(
+        seeds=2, methods=["SceneScore", "SceneScore (langevin>alm)"], quick=True, progress=False, levels=[1]
+    )
+    kw.update(samples=8, refine=1)
+    one = compose.run(jobs=1, **kw)
+    two = compose.run(jobs=2, **kw)
+    assert two.correct == one.correct and two.distinct == one.distinct
+    assert len(two.correct["SceneScore"]) == 2  # one row of counts per seed, in seed order

@@ -95,3 +95,14 @@ def test_heatmap_run_quick(tmp_path):
     assert "from_pen_minimum_cm" in pencil.figures
     assert len(res.figures) == 6 and all((tmp_path / p.split("/")[-1]).exists() for p in res.figures)
     assert "relation error" in heatmap.format_heatmap(res)
+
+
+def test_novel_and_missing_in_worker_processes_give_the_same_figures():
+    from scenescore.experiments import missing
+
+    kw = dict(seeds=2, methods=["Oracle"], rules=("class_size", "all_size"), n_test=2, log=lambda s: None)
+    one, two = novel.run(jobs=1, **kw), novel.run(jobs=2, **kw)
+    assert two.per_seed == one.per_seed and len(two.per_seed["Oracle"]) == 2
+    kw = dict(seeds=2, methods=["Nearest-Nbr", "Oracle"], progress=False, log=lambda s: None)
+    one, two = missing.run(jobs=1, **kw), missing.run(jobs=2, **kw)
+    assert two.per_seed == one.per_seed and list(two.per_seed) == ["Nearest-Nbr", "Oracle"]

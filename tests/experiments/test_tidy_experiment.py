@@ -54,7 +54,36 @@ def test_run_reports_every_method_and_draws_the_chart(tmp_path):
         assert 0 <= f["no_plan"] <= 1 and ("plans_valid" in f) == (f["no_plan"] < 1)
     missing = res.figures("missing placement")
     assert missing["precision"] == 1.0 and missing["recall"] == 1.0
+    per_case = res.per_case()
+    assert len(per_case) == len(res.cases)
+    for c, rec in zip(res.cases, per_case):
+        assert rec["displaced"] == c.displaced and set(rec["methods"]) == set(methods)
+        assert rec["methods"]["missing placement"]["moved"] == sorted(c.displaced)
     md = T.format_tidy(res)
     assert "### All cases" in md and "### desk" in md and "| missing placement |" in md
     T.plot_pareto(res, tmp_path / "pareto.png")
     assert (tmp_path / "pareto.png").stat().st_size > 1000
+
+
+def test_worker_processes_give_the_same_outcomes_in_the_order_asked():
+    import pytest
+
+    from scenescore.scene import SceneError
+
+    chain = replace(PLACEMENT, steps=2, final_descent=1)
+    tiny = LangevinOptions(particles=2, candidates=4, chain=chain)
+    kw = dict(
+        efforts=(1.0,),
+        test_scenes=1,
+        config=TrainConfig(iterations=2, batch_scenes=4),
+        sizes=(0.4,),
+        log=lambda s: None,
+        options=TidyOptions(propose=tiny, refine_options={"max_iter": 2}),
+        place_options=tiny,
+    )
+    one = T.run(("desk", "tv"), jobs=1, **kw)
+    two = T.run(("desk", "tv"), jobs=2, **kw)
+    assert [c.scenario for c in two.cases] == [c.scenario for c in one.cases]
+    assert two.outcomes == one.outcomes
+    with pytest.raises(SceneError, match="jobs must be a whole number >= 1"):
+        T.run(("desk",), jobs=0, **kw)
