@@ -65,6 +65,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="tidy: test scenes per scenario, each displaced five ways (default 3; 1 with --quick)",
     )
     p.add_argument(
+        "--efforts",
+        default=None,
+        help="tidy: comma-separated effort weights, one row each (default 0.3,1,3; the Pareto chart needs two)",
+    )
+    p.add_argument(
         "--iterations",
         type=int,
         default=None,
@@ -308,6 +313,17 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     return md + zoo.format_zoo(res), res.rows()
 
 
+def _efforts(text: str) -> tuple[float, ...]:
+    """``--efforts`` as weights, each a finite number >= 0, each once."""
+    try:
+        out = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        out = ()
+    if not out or not all(0 <= v < float("inf") for v in out) or len(set(out)) != len(out):
+        raise UserError(f"--efforts: expected distinct finite weights >= 0 separated by commas, got {text!r}")
+    return out
+
+
 def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     import json
 
@@ -325,9 +341,11 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     if test_scenes < 1:
         raise UserError(f"--test-scenes must be at least 1, got {test_scenes}")
     cfg = TrainConfig(iterations=iterations) if iterations else TrainConfig()
+    efforts = tidy.EFFORTS if args.efforts is None else _efforts(args.efforts)
     log = (lambda s: None) if args.quiet else print
     res = tidy.run(
         names,
+        efforts=efforts,
         test_scenes=test_scenes,
         seed=args.seed,
         config=cfg,

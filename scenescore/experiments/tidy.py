@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, cast
@@ -467,34 +467,49 @@ def format_tidy(res: TidyRun) -> str:
 def plot_pareto(res: TidyRun, path: Any) -> None:
     """Desirability (accepted fraction) against effort (total displacement over put-back) as the effort
     weight varies, the baselines as single points."""
+    methods = [method_name(e) for e in res.efforts] + ["missing placement", "re-place all"]
+    pareto_chart({m: res.figures(m) for m in methods}, res.efforts, path)
+
+
+def pareto_chart(figures: dict[str, dict[str, float]], efforts: Sequence[float], path: Any) -> None:
+    """:func:`plot_pareto` from each method's figures (``results.json``'s rows: ``ratio``, ``accepted``)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullLocator
 
     from ..plot import save_figure
 
     fig, ax = plt.subplots(figsize=(5.6, 4.2))
-    pts = [(e, res.figures(method_name(e))) for e in res.efforts]
+    pts = [(e, figures[method_name(e)]) for e in efforts]
     xs = [f["ratio"] for _, f in pts]
     ys = [f["accepted"] for _, f in pts]
-    ax.plot(xs, ys, "-o", color="C0", label="tidy, effort weight varied")
+    ax.plot(xs, ys, "-", color="C0", lw=1.2, alpha=0.6)
+    markers = "oDvP*Xh"
     for k, ((e, _), x, y) in enumerate(zip(pts, xs, ys)):
-        # labels alternately above and below their points: weights whose points coincide stay legible
-        ax.annotate(
-            f"{e:g}", (x, y), xytext=(4, 4 if k % 2 == 0 else -10), textcoords="offset points", fontsize=7
+        # each weight its own marker in the legend: points that lie close together (or beside a
+        # baseline's) stay told apart, with no label to sit on the wrong one
+        default = " (default)" if e == EFFORT else ""
+        ax.plot(
+            [x],
+            [y],
+            markers[k % len(markers)],
+            color="C0",
+            ms=7,
+            ls="none",
+            label=f"tidy, effort {e:g}{default}",
         )
     for m, style in (("missing placement", ("s", "C2")), ("re-place all", ("^", "C3"))):
-        f = res.figures(m)
+        f = figures[m]
         ax.plot([f["ratio"]], [f["accepted"]], style[0], color=style[1], ls="none", label=m)
-    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullLocator
-
     ax.set_xscale("symlog", linthresh=1.0)  # 0 (nothing moved) stays on the chart
-    top = max([1.0, *xs, *(res.figures(m)["ratio"] for m in ("missing placement", "re-place all"))])
+    top = max([1.0, *xs, *(figures[m]["ratio"] for m in ("missing placement", "re-place all"))])
     ticks = [0, 0.5, 1] + [t for t in (2, 5, 10, 20, 50, 100) if t <= 1.2 * top]
     ax.xaxis.set_major_locator(FixedLocator(ticks))
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_xlim(0, 1.25 * top)  # every tick up to the largest ratio shows
     ax.axvline(1.0, color="0.6", lw=0.8, ls="--")
     ax.set_xlabel("total displacement / put-back displacement (linear below 1, log above)")
     ax.set_ylabel("accepted by the scenario's check")

@@ -141,6 +141,7 @@ def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys
             "resolution",
         ),
         (["demo", "--out", str(tmp_path / "afile")], "expected a folder"),
+        (["experiment", "tidy", "--efforts", "1,-2", "--out", str(tmp_path / "t")], "--efforts: expected"),
     ]
     for argv, msg in cases:
         assert main([*argv, "--quiet"]) == 2, argv
@@ -216,11 +217,16 @@ def test_options_for_stages_the_chosen_chain_skips_are_named(capsys):
 def test_experiment_tidy_quick_writes_every_case(tmp_path):
     torch.set_num_threads(1)
     out = tmp_path / "tidy"
-    argv = ["experiment", "tidy", "--quick", "--scenarios", "desk", "--iterations", "2"]
+    argv = ["experiment", "tidy", "--quick", "--scenarios", "desk", "--iterations", "2", "--efforts", "1,3"]
     assert main([*argv, "--out", str(out), "--quiet"]) == 0
     cases = json.loads((out / "cases.json").read_text())
     rows = json.loads((out / "results.json").read_text())
     assert cases and rows[0]["cases"] == len(cases)
-    assert {"tidy (effort 1) default", "re-place all", "missing placement"} <= set(cases[0]["methods"])
+    assert set(cases[0]["methods"]) == {
+        "tidy (effort 1) default",
+        "tidy (effort 3)",
+        "re-place all",
+        "missing placement",
+    }
     assert all(c["scenario"] == "desk" and c["displaced"] for c in cases)
     assert (out / "pareto.png").stat().st_size > 1000 and "cases.json" in (out / "table.md").read_text()
