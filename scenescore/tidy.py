@@ -669,8 +669,9 @@ def _finish(
         if not worse(alt, x):
             x = alt
     if moved:
-        moved = [n for n, d in zip(scene.names, _moves(scene, x)) if d > tol]
-        x = np.where((_moves(scene, x) > tol)[:, None], x, current)
+        far = _moves(scene, x) > tol  # (N,)
+        moved = [n for n, f in zip(scene.names, far) if f]
+        x = np.where(far[:, None], x, current)
         final = tidy_problem(model, scene, effort, stay, weights, reach, o, movable=moved or problem.movable)
     if moved and o.refine:
         # the moved objects alone, every other one exactly where it is; by the energy and the constraints

@@ -53,14 +53,14 @@ def worker_pool(jobs: int) -> Iterator[Pool]:
 
 
 def map_in_workers(fn: Callable[..., T], items: Sequence[Any], jobs: int = 1, log: Log = print) -> list[T]:
-    """``fn(item, log)`` for each of ``items``, in order. With ``jobs > 1``, in that many worker
+    """``fn(item, log=log)`` for each of ``items``, in order. With ``jobs > 1``, in that many worker
     processes of one torch thread each (``fn`` must pickle: a module-level function or a
     :func:`functools.partial` of one); each item's log lines are printed when it finishes, and its
     result does not depend on ``jobs``."""
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1 or len(items) <= 1:
-        return [fn(item, log) for item in items]
+        return [fn(item, log=log) for item in items]
     done: dict[int, T] = {}
     with worker_pool(min(jobs, len(items))) as pool:
         for k, value, lines in pool.imap_unordered(_one, [(fn, k, item) for k, item in enumerate(items)]):
@@ -77,4 +77,4 @@ def _one(task: tuple[Callable[..., Any], int, Any]) -> tuple[int, Any, list[str]
     torch.set_num_threads(1)
     fn, k, item = task
     lines: list[str] = []
-    return k, fn(item, lines.append), lines
+    return k, fn(item, log=lines.append), lines

@@ -324,7 +324,7 @@ def run(
     for name in scenarios:
         get(name)  # an unknown name fails here, before any worker starts
     one = partial(
-        _scenario,
+        run_scenario,
         efforts=tuple(efforts),
         test_scenes=test_scenes,
         seed=seed,
@@ -344,11 +344,6 @@ def run(
             res.outcomes.setdefault(m, []).extend(got)
             res.seconds[m] = res.seconds.get(m, 0.0) + part.seconds[m]
     return res
-
-
-def _scenario(name: str, log: Callable[[str], None], **kw: Any) -> TidyRun:
-    """:func:`run_scenario` with the argument order :func:`~scenescore.workers.map_in_workers` calls."""
-    return run_scenario(name, log=log, **kw)
 
 
 def run_scenario(

@@ -16,6 +16,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,7 @@ from ..scenarios.zoo import ZOO
 from ..scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
 from ..training import TrainConfig, split_validation, train
+from ..workers import map_in_workers
 from .report import Row, format_table
 
 __all__ = [
@@ -198,15 +200,26 @@ def run_one(
     return {"cases": records, "worst": worst, "seconds": time.perf_counter() - t0}
 
 
-def _worker(
-    task: tuple[str, int, TrainConfig | None, bool, Any, LangevinOptions | None, float],
-) -> tuple[str, int, dict[str, Any]]:
-    """``run_one`` in a worker process, on one thread (the pool's processes share the cores)."""
-    import torch
-
-    torch.set_num_threads(1)
-    name, seed, config, energy_only, device, place, val = task
-    return name, seed, run_one(name, seed, config, False, energy_only, device, place, val)
+def _pair(
+    task: tuple[str, int],
+    log: Callable[[str], None],
+    config: TrainConfig | None,
+    progress: bool,
+    energy_only: bool,
+    device: Any,
+    place: LangevinOptions | None,
+    val: float,
+) -> dict[str, Any]:
+    """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done."""
+    name, seed = task
+    one = run_one(name, seed, config, progress, energy_only, device, place, val)
+    got = one["cases"]
+    log(
+        f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
+        f"oracle {np.mean([c['oracle_t_cm'] for c in got]):.2f} cm, "
+        f"max {max(c['t_cm'] for c in got):.1f} cm ({one['seconds']:.0f} s)"
+    )
+    return one
 
 
 def run(
@@ -235,29 +248,18 @@ def run(
     if jobs < 1:
         raise SceneError(f"zoo: jobs must be at least 1, got {jobs}")
     tasks = [(name, seed) for name in chosen for seed in range(seeds)]
-    done: dict[tuple[str, int], dict[str, Any]] = {}
-
-    def report(name: str, seed: int, one: dict[str, Any]) -> None:
-        done[(name, seed)] = one
-        got = one["cases"]
-        log(
-            f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
-            f"oracle {np.mean([c['oracle_t_cm'] for c in got]):.2f} cm, "
-            f"max {max(c['t_cm'] for c in got):.1f} cm ({one['seconds']:.0f} s)"
-        )
-
-    if jobs == 1:
-        for name, seed in tasks:
-            report(name, seed, run_one(name, seed, config, progress, energy_only, device, place, val))
-    else:
-        from ..workers import worker_pool
-
-        # the largest graphs first, so the long pairs do not start last
-        order = sorted(tasks, key=lambda t: -get(t[0]).counts[1])
-        work = [(name, seed, config, energy_only, device, place, val) for name, seed in order]
-        with worker_pool(jobs) as pool:
-            for name, seed, one in pool.imap_unordered(_worker, work):
-                report(name, seed, one)
+    if jobs > 1:  # the largest graphs first, so the long pairs do not start last
+        tasks.sort(key=lambda t: -get(t[0]).counts[1])
+    pair = partial(
+        _pair,
+        config=config,
+        progress=progress and jobs == 1,
+        energy_only=energy_only,
+        device=device,
+        place=place,
+        val=val,
+    )
+    done = dict(zip(tasks, map_in_workers(pair, tasks, jobs, log)))
     res = ZooResult()
     for name in chosen:
         sc = get(name)
