@@ -26,7 +26,9 @@ stationarity: the Lagrangian's gradient within ``tol_grad``, or the particle sto
 ``tol_step`` in an outer iteration; contacts between boxes are kinks where no gradient vanishes).
 With ``polish: false`` the refinement is a repair: a particle is done as soon as it is feasible (one
 feasible from the start does not move), which keeps a sampler's spread where polishing would merge
-the particles of one basin into one arrangement. Converged particles leave the active set, so later iterations only pay for the particles still
+the particles of one basin into one arrangement. A looser ``tol_grad`` is the step between: every
+particle takes at least one outer iteration's ``inner`` steps of descent, then stops once feasible
+and the objective nearly flat, short of the minimum where the particles of a basin meet. Converged particles leave the active set, so later iterations only pay for the particles still
 moving. A particle still violated when the iterations run out falls back to its last feasible iterate
 (its start, if that was feasible). Fixed objects, and objects the problem does not move, never move.
 """

@@ -105,6 +105,12 @@ def test_repair_leaves_feasible_samples_alone_and_repairs_the_rest():
     assert any(np.array_equal(x, good[0].numpy()) for x in r.samples)  # not moved at all
     polished = solve(p, "alm", init=x0)
     assert not any(np.array_equal(x, good[0].numpy()) for x in polished.samples)  # pulled to its targets
+    # a looser stationarity test (the targets pull at about 8 per metre where the good start is): every
+    # particle still takes one outer iteration of descent, then stops short of the minimum
+    loose = solve(p, "alm", init=x0, options={"alm": {"tol_grad": 50.0}})
+    assert all(p.check(x).feasible for x in loose.samples)
+    assert set(loose.sample_status) == {"converged"} and loose.iterations <= polished.iterations
+    assert not any(np.array_equal(x, good[0].numpy()) for x in loose.samples)
 
 
 def test_same_seed_same_numbers():
