@@ -8,11 +8,14 @@ moving objects from where they are (:class:`~scenescore.costs.Displacement` and
    the objects chosen so far together with one more movable object (placed by the learned energy with
    the others where they are; as many draws as placement screens for the bounds, half of them proposed
    beside the objects that stay as the data has them; half keep the chosen objects where the last step
-   put them, a quarter put two of the set in each other's places; every candidate set of every scene in
-   one batched chain per size) and keeps the set whose best placement lowers the whole cost most; then each
-   chosen object is tried back where it is, the rest re-placed. When no single object pays, pairs of
-   the best single candidates are tried together (two objects each where the other belongs). It stops
-   when nothing lowers the cost. Moving an object costs, at effort 1, what re-placing an object of a
+   put them, an eighth start near where the set's objects are, a quarter put two of the set in each
+   other's places; every candidate set of every scene in one batched chain per size; the exact
+   exchanges of two of the set are candidates too) and keeps the set whose best placement lowers the
+   whole cost most; then each chosen object is tried back where it is, the rest re-placed. Each step
+   also tries the pairs of objects of different kinds whose exchange lowers the cost most (a swap,
+   where a false single move may pay first). When no single object pays, pairs of the best single
+   candidates are tried together (two objects each where the other belongs). It stops when nothing
+   lowers the cost. Moving an object costs, at effort 1, what re-placing an object of a
    right scene gains by the model's noise (:func:`calibrate`, :func:`count_weight`), times the object's
    effort weight: larger objects than the scene's median cost more (:func:`effort_weights`), so where
    moving either end of a relation fixes it, the smaller one moves.
@@ -41,7 +44,7 @@ import torch
 from torch import Tensor
 
 from .costs import Bounds, Cost, Displacement, HingeCollision, LearnedEnergy, MoveCount, ReachLimit
-from .devices import generator
+from .devices import draw, generator
 from .errors import ConfigError, check_number
 from .models import ScoreModel
 from .placement import OVERLAP_WEIGHT, non_overlap
@@ -82,6 +85,12 @@ COUNT = 0.3
 GAIN_QUANTILE = 0.75
 #: the selection tries pairs of objects among this many best single moves when no single move pays
 PAIR_CANDIDATES = 5
+#: each step of the selection also tries this many pairs whose exchange (each object at the other's
+#: position) lowers the whole cost the most
+SWAP_CANDIDATES = 3
+#: the spread (length scales; radians for the heading) of the re-placement draws started near an
+#: object's current pose (:func:`_near_draws`; 0: none)
+NEAR = 1.0
 
 Reach = tuple[tuple[float, float], float]  # ((x, y) of the robot's base, radius in metres)
 
@@ -414,7 +423,10 @@ def _select(
     chosen object is tried back where it is, the rest re-placed, and dropped when that lowers the cost
     (a first pick that only made room for the right one). When no such step lowers the cost, pairs of
     the :data:`PAIR_CANDIDATES` best single additions are tried together (two objects that are each
-    where the other belongs: neither move pays alone); it stops when that fails too.
+    where the other belongs: neither move pays alone); it stops when that fails too. Each step also
+    tries the chosen set with the :data:`SWAP_CANDIDATES` pairs whose exchange lowers the cost most
+    (:func:`_swaps`), so that two objects in each other's places are found even where a false single
+    move pays first.
     Returns each scene's poses ``(N, 3)``."""
     states = [s.poses() for s in scenes]
     chosen: list[list[str]] = [[] for _ in scenes]
@@ -424,7 +436,11 @@ def _select(
     step = 0
     while active and step < 4 * max(limit):
         step += 1
-        grow = {k: [[*chosen[k], n] for n in problems[k].movable if n not in chosen[k]] for k in active}
+        grow = {
+            k: [[*chosen[k], n] for n in problems[k].movable if n not in chosen[k]]
+            + (_swaps(problems[k], states[k], best[k], chosen[k]) if len(chosen[k]) + 2 <= limit[k] else [])
+            for k in active
+        }
         shrink = {
             k: [[m for m in chosen[k] if m != n] for n in chosen[k]] for k in active if len(chosen[k]) > 1
         }
@@ -447,6 +463,27 @@ def _select(
                     still.append(k)
         active = sorted(still)
     return states
+
+
+def _swaps(problem: Problem, x: np.ndarray, best: float, chosen: list[str]) -> list[list[str]]:
+    """The chosen set with each of the :data:`SWAP_CANDIDATES` pairs of movable objects of different kinds
+    (category or size) not in it whose exchange at the poses ``x (N, 3)`` (each at the other's position,
+    with its own heading or the other's, the better) lowers the whole cost below ``best`` the most; one
+    batched cost evaluation."""
+    scene = problem.scene
+    free = [n for n in problem.movable if n not in chosen]
+    pairs = [
+        (a, b)
+        for i, a in enumerate(free)
+        for b in free[i + 1 :]
+        if (scene[a].category, scene[a].size) != (scene[b].category, scene[b].size)
+    ]
+    if not pairs or SWAP_CANDIDATES <= 0:
+        return []
+    xs = _exchanges(x, [(scene.index(a), scene.index(b)) for a, b in pairs])  # (2P, N, 3)
+    costs = _cost(problem, xs).reshape(2, len(pairs)).min(0)  # (P,): the better of the two exchanges
+    order = [j for j in np.argsort(costs, kind="stable") if costs[j] < best][:SWAP_CANDIDATES]
+    return [[*chosen, *pairs[j]] for j in order]
 
 
 def _pairs(chosen: list[str], tried: list[tuple[float, list[str]]]) -> list[list[str]]:
@@ -488,12 +525,13 @@ def _replacements(
         # a share of them proposed beside the objects that stay, as the data has them, the rest uniform
         draws = max(covering(o.propose, model, [scenes[k]]).candidates, keep)
         x = p.initial(draws, gen, proposals=o.propose.proposals)  # (draws, N, 3): the others where they are
+        rows = [scenes[k].index(m) for m in names]
         if warm is not None:
             now = scenes[k].poses()
-            rows = [scenes[k].index(m) for m in names]
             moved = [i for i in rows if not np.array_equal(warm[k][i], now[i])]
             if moved:
                 x[: draws // 2, moved] = torch.as_tensor(warm[k][moved], dtype=x.dtype, device=x.device)
+        _near_draws(x, scenes[k], rows, model.config.length_scale, gen)
         _swap_draws(x, scenes[k], names)
         blanks.append(p)
         starts.append(screen(p.cost, x, keep))
@@ -504,12 +542,17 @@ def _replacements(
         for j, res in zip(idx, results):
             k, names = flat[j]
             assert res.samples is not None
-            costs = _cost(problems[k], res.samples)
+            # the chain's samples and the set's exact exchanges (a chain may leave a swap it was started on)
+            pairs = _set_pairs(scenes[k], names)
+            got = np.asarray(res.samples, dtype=float)
+            if pairs:
+                got = np.concatenate([got, _exchanges(scenes[k].poses(), pairs)])
+            costs = _cost(problems[k], got)
             i = int(np.argmin(costs))
             if every is not None:
                 every.setdefault(k, []).append((float(costs[i]), list(names)))
             if k not in found or costs[i] < found[k][0]:
-                found[k] = (float(costs[i]), np.asarray(res.samples[i], dtype=float), list(names))
+                found[k] = (float(costs[i]), got[i], list(names))
     return found
 
 
@@ -534,19 +577,55 @@ def object_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> l
     return [(k, n, now[k] - found[j][0] if j in found else 0.0) for j, (k, n) in enumerate(items)]
 
 
+def _near_draws(x: Tensor, scene: Scene, rows: list[int], length: float, gen: torch.Generator) -> None:
+    """In the eighth of the draws ``x (D, N, 3)`` before their last quarter, the objects ``rows`` near
+    where they are now: their poses in ``scene`` plus Gaussian noise of :data:`NEAR` length scales
+    ``length`` (and radians): an object nudged a little is found by a short chain, not left to uniform
+    draws over the whole bounds."""
+    if NEAR <= 0 or not rows:
+        return
+    d = x.shape[0]
+    a, z = d - d // 4 - d // 8, d - d // 4
+    if z <= a:
+        return
+    now = torch.as_tensor(scene.poses()[rows], dtype=x.dtype, device=x.device)  # (R, 3)
+    noise = draw("randn", (z - a, len(rows), 3), gen, x.device, x.dtype)
+    noise[..., :2] *= NEAR * length
+    noise[..., 2] *= NEAR
+    x[a:z, rows] = now + noise
+
+
+def _exchanges(x: np.ndarray, pairs: Sequence[tuple[int, int]]) -> np.ndarray:
+    """The poses ``x (N, 3)`` with each pair of rows ``pairs`` exchanged, two ways: ``(2P, N, 3)``, first
+    each object at the other's pose, then (rows ``P..2P``) at the other's position with its own heading."""
+    x = np.asarray(x, dtype=float)
+    out = np.repeat(x[None], 2 * len(pairs), axis=0)
+    for j, (a, b) in enumerate(pairs):
+        out[j, a], out[j, b] = x[b], x[a]
+        out[len(pairs) + j, a, :2], out[len(pairs) + j, b, :2] = x[b, :2], x[a, :2]
+    return out
+
+
+def _set_pairs(scene: Scene, names: Sequence[str]) -> list[tuple[int, int]]:
+    """Rows of every pair of the objects ``names`` of ``scene``."""
+    rows = [scene.index(m) for m in names]
+    return [(a, b) for i, a in enumerate(rows) for b in rows[i + 1 :]]
+
+
 def _swap_draws(x: Tensor, scene: Scene, names: list[str]) -> None:
     """In the last quarter of the draws ``x (D, N, 3)``, each pair of the set ``names`` in turn trades
-    places (each where the other is now, with its heading), the set's other objects as drawn: two
-    objects in each other's places are found at once, not left to uniform draws."""
-    rows = [scene.index(m) for m in names]
-    pairs = [(a, b) for i, a in enumerate(rows) for b in rows[i + 1 :]]
+    places (:func:`_exchanges`: with the other's heading, and in every other round with its own), the
+    set's other objects as drawn: two objects in each other's places are found at once, not left to
+    uniform draws."""
+    pairs = _set_pairs(scene, names)
     if not pairs:
         return
-    now = torch.as_tensor(scene.poses(), dtype=x.dtype, device=x.device)
+    swapped = torch.as_tensor(_exchanges(scene.poses(), pairs), dtype=x.dtype, device=x.device)
     start = x.shape[0] - x.shape[0] // 4
     for j in range(start, x.shape[0]):
-        a, b = pairs[(j - start) % len(pairs)]
-        x[j, a], x[j, b] = now[b], now[a]
+        i = (j - start) % len(pairs)
+        rows = list(pairs[i])
+        x[j, rows] = swapped[i + len(pairs) * (((j - start) // len(pairs)) % 2), rows]
 
 
 def _scene_best(gains: list[tuple[int, str, float]], scenes: int) -> np.ndarray:

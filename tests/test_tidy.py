@@ -278,17 +278,20 @@ def test_swap_draws_put_each_pair_in_each_others_places():
     assert not y.any()
 
 
-def _swapped_wells(pairs: int) -> tuple[list[str], np.ndarray]:
+def _swapped_wells(
+    pairs: int, swaps: int = 0, kinds: tuple[str, str] = ("box", "box")
+) -> tuple[list[str], np.ndarray]:
     """Two large boxes, each where the other belongs (a hand-made energy: a narrow well at each one's
     right place): a single move cannot reach its well, the other box is in it; the pair can. Returns
-    which objects the selection moved (with ``PAIR_CANDIDATES = pairs``) and the poses."""
+    which objects the selection moved (with ``PAIR_CANDIDATES = pairs``, ``SWAP_CANDIDATES = swaps``;
+    ``kinds``: the boxes' categories) and the poses."""
     from scenescore.costs import CostFn
 
     model = _flat_model()
     scene = Scene(
         [
-            SceneObject("red", "box", (0.4, 0.4), (-0.3, 0.0, 0.0)),
-            SceneObject("blue", "box", (0.4, 0.4), (0.3, 0.0, 0.0)),
+            SceneObject("red", kinds[0], (0.4, 0.4), (-0.3, 0.0, 0.0)),
+            SceneObject("blue", kinds[1], (0.4, 0.4), (0.3, 0.0, 0.0)),
         ],
         bounds=((-0.6, -0.6), (0.6, 0.6)),
     )
@@ -302,13 +305,13 @@ def _swapped_wells(pairs: int) -> tuple[list[str], np.ndarray]:
     o = TidyOptions(propose=LangevinOptions(particles=4096, chain=chain))
     prob = tidy_problem(model, scene, 1.0, options=o)
     tidy_module = importlib.import_module("scenescore.tidy")
-    old = tidy_module.PAIR_CANDIDATES
-    tidy_module.PAIR_CANDIDATES = pairs
+    old = tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES
+    tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES = pairs, swaps
     try:
         problem = Problem(scene, prob.cost + CostFn(wells, name="wells"), movable=prob.movable)
         x = T_select(model, [scene], [problem], o, seed=0)[0]
     finally:
-        tidy_module.PAIR_CANDIDATES = old
+        tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES = old
     moved = [n for i, n in enumerate(scene.names) if not np.array_equal(x[i], scene.poses()[i])]
     return moved, x
 
@@ -319,6 +322,42 @@ def test_the_selection_moves_a_swapped_pair_that_no_single_move_fixes():
     moved, x = _swapped_wells(pairs=5)
     assert sorted(moved) == ["blue", "red"]
     assert np.hypot(*(x[0, :2] - [0.3, 0.0])) < 0.15 and np.hypot(*(x[1, :2] - [-0.3, 0.0])) < 0.15
+
+
+def test_the_selection_tries_the_exchange_of_two_objects_of_different_kinds():
+    # no pair search: two boxes of one kind trade places for nothing, so no exchange is tried
+    assert _swapped_wells(pairs=0, swaps=3)[0] == []
+    # of different kinds: without exchanges neither moves; with them both do, each into its well
+    assert _swapped_wells(pairs=0, swaps=0, kinds=("box", "crate"))[0] == []
+    moved, x = _swapped_wells(pairs=0, swaps=3, kinds=("box", "crate"))
+    assert sorted(moved) == ["blue", "red"]
+    assert np.hypot(*(x[0, :2] - [0.3, 0.0])) < 0.15 and np.hypot(*(x[1, :2] - [-0.3, 0.0])) < 0.15
+
+
+def test_near_draws_start_an_eighth_of_the_draws_beside_the_current_poses():
+    from scenescore.tidy import NEAR, _near_draws
+
+    scene = _two(a=(-0.3, 0.1), b=(0.3, -0.1))
+    x = torch.full((32, 2, 3), 9.0, dtype=torch.float64)
+    _near_draws(x, scene, [1], 0.05, torch.Generator().manual_seed(0))
+    near = x[20:24, 1]  # 32 draws: the eighth before the last quarter
+    now = torch.as_tensor(scene.poses()[1])
+    assert torch.all((near[:, :2] - now[:2]).abs() < 5 * NEAR * 0.05) and not torch.equal(near[0], now)
+    assert torch.all(x[:20] == 9.0) and torch.all(x[24:] == 9.0) and torch.all(x[:, 0] == 9.0)
+
+
+def test_exchanges_trade_whole_poses_then_positions():
+    from scenescore.tidy import _exchanges
+
+    x = np.array([[0.0, 0.0, 0.1], [1.0, 0.0, 0.2], [0.0, 1.0, 0.3]])
+    out = _exchanges(x, [(0, 1), (1, 2)])
+    assert out.shape == (4, 3, 3)
+    assert np.array_equal(
+        out[0], [[1.0, 0.0, 0.2], [0.0, 0.0, 0.1], [0.0, 1.0, 0.3]]
+    )  # 0 <-> 1, headings too
+    assert np.array_equal(
+        out[3], [[0.0, 0.0, 0.1], [0.0, 1.0, 0.2], [1.0, 0.0, 0.3]]
+    )  # 1 <-> 2, positions only
 
 
 def test_effort_weights_charge_larger_objects_more_and_keep_the_users():
@@ -363,7 +402,7 @@ def _relation_tie(weights: dict[str, float] | None) -> list[str]:
         off = x[..., 1, :2] - x[..., 0, :2] - torch.tensor([0.3, 0.0], dtype=x.dtype)  # (B, 2)
         return 50.0 * (off**2).sum(-1)
 
-    chain = replace(PLACEMENT, steps=2, final_descent=1)
+    chain = replace(PLACEMENT, steps=6, final_descent=4)
     o = TidyOptions(propose=LangevinOptions(particles=512, chain=chain))
     prob = tidy_problem(model, scene, 1.0, weights=weights, options=o)
     problem = Problem(scene, prob.cost + CostFn(relation, name="relation"), movable=prob.movable)
