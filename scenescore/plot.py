@@ -113,14 +113,18 @@ def draw_scene(
                 arrowprops={"arrowstyle": "->", "color": "k", "lw": 0.8},
             )
         if hl or names == "all":
+            # above the object; below it where the label would leave the bounds' top edge
+            (_, y_lo), (_, y_hi) = scene.bounds
+            below = y + 0.5 * max(o.size) + 0.05 * (y_hi - y_lo) > y_hi
+            lift = 0.5 * max(o.size) * _points_per_metre(ax, scene) + 2
             ax.annotate(
                 o.name,
                 (x, y),
-                xytext=(0, 0.5 * max(o.size) * _points_per_metre(ax, scene) + 2),
+                xytext=(0, -lift if below else lift),
                 textcoords="offset points",
                 fontsize=6.5,
                 ha="center",
-                va="bottom",
+                va="top" if below else "bottom",
                 color="darkred" if hl else "0.2",
                 bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7},
             )

@@ -84,6 +84,22 @@ def test_draw_scene_reports_what_it_drew_and_the_legend_names_it():
     plt.close(fig)
 
 
+def test_a_name_label_at_the_top_edge_goes_below_its_object():
+    scene = Scene(
+        [
+            SceneObject("top", "box", (0.2, 0.05), (0.0, 0.57, 0.0)),
+            SceneObject("middle", "box", (0.2, 0.05), (0.0, 0.0, 0.0)),
+        ],
+        bounds=((-0.6, -0.6), (0.6, 0.6)),
+    )
+    fig, ax = plt.subplots()
+    draw_scene(ax, scene, names="all")
+    where = {t.get_text(): t for t in ax.texts}
+    plt.close(fig)
+    assert where["top"].get_va() == "top" and where["top"].xyann[1] < 0  # inside the bounds
+    assert where["middle"].get_va() == "bottom" and where["middle"].xyann[1] > 0
+
+
 def test_plot_result_draws_the_reach_circle_and_names_moving_objects(tmp_path):
     scene = _scene(mug=None)
     cost = PoseTarget("mug", (-0.3, 0.2)) + 10 * HingeCollision() + Bounds() + ReachLimit((0.0, -0.7), 1.2)
