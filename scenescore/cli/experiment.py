@@ -76,6 +76,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="tidy: training iterations per scenario (default the trainer's 600; 30 with --quick)",
     )
     p.add_argument(
+        "--alm",
+        default=None,
+        help="compose: the refined row's alm options as JSON (default '{\"tol_grad\": 1.0}'; "
+        "'{\"polish\": false}': a repair; '{\"tol_grad\": 0.01}': polished to the minimum)",
+    )
+    p.add_argument(
         "--from-images",
         action="store_true",
         help="missing, novel: build every graph from rendered images (detection, moments, crops)",
@@ -260,6 +266,7 @@ def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         progress=not args.quiet,
         device=args.device,
         jobs=args.jobs,
+        refine_options=None if args.alm is None else _alm_options(args.alm),
     )
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
@@ -311,6 +318,33 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         f"back {how}; {args.seeds} seed(s); every placement in cases.json; each scenario's worst in worst.png.\n\n"
     )
     return md + zoo.format_zoo(res), res.rows()
+
+
+def _alm_options(text: str) -> dict[str, object]:
+    """``--alm`` as ``alm`` options: a JSON object whose keys and values :class:`ALMOptions` accepts."""
+    import json
+    from dataclasses import fields
+
+    from ..errors import ConfigError
+    from ..solvers.alm import ALMOptions
+
+    try:
+        opts = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise UserError(
+            f"--alm: expected a JSON object such as '{{\"tol_grad\": 1.0}}', got {text!r} ({e.msg})"
+        ) from None
+    if not isinstance(opts, dict):
+        raise UserError(f"--alm: expected a JSON object such as '{{\"tol_grad\": 1.0}}', got {text!r}")
+    known = [f.name for f in fields(ALMOptions)]
+    unknown = [k for k in opts if k not in known]
+    if unknown:
+        raise UserError(f"--alm: unknown option(s) {unknown}; alm's options are {known}")
+    try:
+        ALMOptions(**opts)
+    except (ConfigError, TypeError) as e:
+        raise UserError(f"--alm: {e}") from None
+    return opts
 
 
 def _efforts(text: str) -> tuple[float, ...]:

@@ -29,6 +29,7 @@ thresholds, no collision by the exact check, inside the room).
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -79,6 +80,7 @@ class ComposeResult:
     levels: list[int]
     samples: int
     refine: int
+    refine_options: dict[str, Any] = field(default_factory=lambda: dict(REFINE))  # the batched row's alm
     correct: dict[str, list[list[float]]] = field(default_factory=dict)  # method -> seed -> level
     distinct: dict[str, list[list[float]]] = field(default_factory=dict)  # distinct correct samples
     seconds: dict[str, float] = field(default_factory=dict)
@@ -153,11 +155,13 @@ def run(
     log: Callable[[str], None] = print,
     device: Any = None,
     jobs: int = 1,
+    refine_options: dict[str, Any] | None = None,
 ) -> ComposeResult:
     """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level;
     SceneScore's model and problems on ``device`` (NeatNet on the CPU). ``jobs > 1`` runs the seeds in
     that many worker processes of one thread each (the counts do not depend on it; seconds are summed
-    over the workers)."""
+    over the workers). ``refine_options``: the :data:`BATCHED` row's ``alm`` options (default
+    :data:`REFINE`)."""
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -168,7 +172,9 @@ def run(
     per_scene = max(1, samples // n_scenes)
     samples = per_scene * n_scenes
     k_refine = refine if refine is not None else (1 if quick else 4)
-    res = ComposeResult(levels, samples, k_refine * n_scenes)
+    res = ComposeResult(
+        levels, samples, k_refine * n_scenes, dict(REFINE if refine_options is None else refine_options)
+    )
     one = partial(
         _seed,
         chosen=list(chosen),
@@ -180,6 +186,7 @@ def run(
         progress=progress,
         bars=progress and jobs == 1,
         device=device,
+        refine_options=res.refine_options,
     )
     for counts, uniq, seconds in map_in_workers(one, list(range(seeds)), jobs, log):
         for m in chosen:
@@ -201,6 +208,7 @@ def _seed(
     progress: bool,
     bars: bool,
     device: Any,
+    refine_options: dict[str, Any],
 ) -> tuple[dict[str, list[float]], dict[str, list[float]], dict[str, float]]:
     """One seed of :func:`run`: per method, correct and distinct correct samples per clutter level, and
     seconds (``progress``: a log line per level; ``bars``: training's progress bar)."""
@@ -254,7 +262,7 @@ def _seed(
             if BATCHED in chosen:
                 t0 = time.perf_counter()
                 assert r.samples is not None
-                rr = get("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
+                rr = get("alm", **refine_options).solve(prob, init=torch.as_tensor(r.samples))
                 seconds[BATCHED] += time.perf_counter() - t0
                 assert rr.samples is not None
                 c, d = _correct(scenario, scene, rr.samples)
@@ -293,8 +301,8 @@ def format_compose(res: ComposeResult) -> str:
     out = (
         format_table(rows, cols, digits=0)
         + f"\n\nCorrect of {res.samples} samples per clutter level, every method on the same budget; "
-        f"{BATCHED} refines all {res.samples} Langevin samples at once (each until feasible and "
-        "the objective nearly flat).\n\n"
+        f"{BATCHED} refines all {res.samples} Langevin samples at once (alm options "
+        f"{json.dumps(res.refine_options)}{_refine_words(res.refine_options)}).\n\n"
         "Distinct correct samples (positions rounded to 1 cm; SceneScore's population resampling copies "
         "particles):\n\n" + format_table(rows, dcols, digits=0)
     )
@@ -308,6 +316,15 @@ def format_compose(res: ComposeResult) -> str:
             "Langevin stage.\n\n" + format_table(per_solve, both, digits=0)
         )
     return out
+
+
+def _refine_words(opts: dict[str, Any]) -> str:
+    """What the batched row's ``alm`` options make of it, in words."""
+    if opts.get("polish") is False:
+        return ": a repair, each sample stops once feasible"
+    if opts == REFINE:
+        return ": each sample descends until feasible and the objective nearly flat"
+    return ""
 
 
 def plot_compose(res: ComposeResult, path: str | Path) -> None:

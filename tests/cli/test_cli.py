@@ -142,6 +142,22 @@ def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys
         ),
         (["demo", "--out", str(tmp_path / "afile")], "expected a folder"),
         (["experiment", "tidy", "--efforts", "1,-2", "--out", str(tmp_path / "t")], "--efforts: expected"),
+        (
+            ["experiment", "compose", "--alm", "{tol_grad: 1}", "--out", str(tmp_path / "c")],
+            "--alm: expected a JSON",
+        ),
+        (
+            ["experiment", "compose", "--alm", "[1]", "--out", str(tmp_path / "c")],
+            "--alm: expected a JSON object",
+        ),
+        (
+            ["experiment", "compose", "--alm", '{"tolgrad": 1}', "--out", str(tmp_path / "c")],
+            "unknown option(s) ['tolgrad']",
+        ),
+        (
+            ["experiment", "compose", "--alm", '{"tol_grad": -1}', "--out", str(tmp_path / "c")],
+            "--alm: alm: tol_grad",
+        ),
     ]
     for argv, msg in cases:
         assert main([*argv, "--quiet"]) == 2, argv

@@ -38,3 +38,16 @@ def test_compose_seeds_in_worker_processes_give_the_same_counts():
     two = compose.run(jobs=2, **kw)
     assert two.correct == one.correct and two.distinct == one.distinct
     assert len(two.correct["SceneScore"]) == 2  # one row of counts per seed, in seed order
+
+
+@pytest.mark.slow
+def test_the_refined_rows_alm_options_reach_it_and_its_words():
+    torch.set_num_threads(1)
+    kw = dict(seeds=1, methods=["SceneScore (langevin>alm)"], quick=True, progress=False, levels=[1])
+    kw.update(samples=8, refine=1)
+    repair = compose.run(refine_options={"polish": False}, **kw)
+    assert repair.refine_options == {"polish": False}
+    assert '(alm options {"polish": false}: a repair' in compose.format_compose(repair)
+    default = compose.run(**kw)
+    assert default.refine_options == compose.REFINE
+    assert "descends until feasible" in compose.format_compose(default)
