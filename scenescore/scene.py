@@ -192,6 +192,12 @@ class SceneObject:
         return self.shape if isinstance(self.shape, str) else "polygon"
 
     @property
+    def kind(self) -> tuple[str, tuple[float, float]]:
+        """Category and size: two objects of one kind are interchangeable (trading their places changes
+        nothing)."""
+        return self.category, (float(self.size[0]), float(self.size[1]))
+
+    @property
     def round(self) -> bool:
         """A round disk: its heading means nothing (the energy ignores it, errors do not count it)."""
         return self.shape_kind == "disk" and abs(self.size[0] - self.size[1]) <= 1e-9 * max(self.size)

@@ -165,10 +165,7 @@ def messy_cases(
         half = _half(truth)
         plans: list[tuple[str, int, float]] = [("shift", k, f) for k in ks if k <= len(names) for f in sizes]
         pairs = [
-            (a, b)
-            for i, a in enumerate(names)
-            for b in names[i + 1 :]
-            if (truth[a].category, truth[a].size) != (truth[b].category, truth[b].size)
+            (a, b) for i, a in enumerate(names) for b in names[i + 1 :] if truth[a].kind != truth[b].kind
         ]
         if swaps and pairs:
             plans.append(("swap", 2, 0.0))

@@ -152,11 +152,11 @@ def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys
         ),
         (
             ["experiment", "compose", "--alm", '{"tolgrad": 1}', "--out", str(tmp_path / "c")],
-            "unknown option(s) ['tolgrad']",
+            "--alm: solver 'alm': unknown option 'tolgrad'; did you mean 'tol_grad'?",
         ),
         (
             ["experiment", "compose", "--alm", '{"tol_grad": -1}', "--out", str(tmp_path / "c")],
-            "--alm: alm: tol_grad",
+            "--alm: solver 'alm': alm: tol_grad",
         ),
     ]
     for argv, msg in cases:
