@@ -7,7 +7,7 @@ The compose experiment's setting (``scenescore experiment compose``: its energy,
 clutter) at a smaller budget: for each seed, clutter level and Langevin configuration (changes to
 ``langevin_options``, given as JSON), ``--per-scene`` samples in each of the five cluttered test
 scenes, counted correct by the scenario's check three ways: the Langevin samples as drawn, repaired
-by ``alm`` (``polish: false``, as the experiment does) and polished by ``alm`` (each sample minimises
+by ``alm`` (``polish: false``: each sample stops once feasible) and polished by ``alm`` (each sample minimises
 the energy until stationary). Each cell is ``correct / distinct`` (positions rounded to 1 cm) over the
 five scenes; the last columns give the repaired correct count per scene, which shows whether the
 misses are spread over every scene or are whole populations in one wrong basin, and the cost of the
@@ -15,9 +15,9 @@ repaired samples (energy + penalties), correct against incorrect (medians), whic
 the energy puts them.
 
 ``--train`` changes the experiment's training settings (``TrainConfig`` fields, as JSON), e.g.
-``{"iterations": 2000}``, ``{"perturbed": 8}`` or, for the network with its edge encoder as the trainer's
-default has it, ``{"edge_encoder": 32, "feature_noise": 0.6, "size_noise": 0.3}`` (the experiment's own
-network has none: ``RAW_EDGES``).
+``{"iterations": 2000}``, ``{"perturbed": 8}`` or, for the network without its edge encoder that Fig. 4
+was first measured with, ``{"edge_encoder": null, "feature_noise": 0.3, "size_noise": 0.0, "reanchored":
+0, "reanchor_restart": 0.0}`` (``RAW_EDGES``).
 """
 
 from __future__ import annotations
@@ -32,11 +32,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from scenescore.experiments.compose import _correct, langevin_options, tv_problem
+from scenescore.experiments.compose import _correct, langevin_options, train_config, tv_problem
 from scenescore.models import ScoreModel, load
 from scenescore.scenarios.tv import TVScenario
 from scenescore.solvers import get, solve
-from scenescore.training import RAW_EDGES, TrainConfig, train
+from scenescore.training import TrainConfig, train
 
 
 def energy(seed: int, changes: dict[str, Any], model_dir: Path | None) -> ScoreModel:
@@ -47,9 +47,7 @@ def energy(seed: int, changes: dict[str, Any], model_dir: Path | None) -> ScoreM
     if path is not None and path.exists():
         return load(path)
     train_scenes, _ = TVScenario().split(seed)
-    tc = TrainConfig(
-        **{"iterations": 600, "full_fraction": 1.0, "single_fraction": 0.0, **RAW_EDGES, **changes}
-    )
+    tc = TrainConfig(**{**train_config().to_dict(), **changes})
     model = train(train_scenes, tc, seed=seed, progress=False)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -35,6 +35,7 @@ __all__ = [
     "threads_for",
     "torch_threads",
     "free_cores",
+    "usable_cores",
 ]
 
 #: pose sets from which a batch's tensors are big enough to pay for torch's thread pool
@@ -124,6 +125,11 @@ def _cpus() -> set[int] | None:
         return None
 
 
+def usable_cores() -> int:
+    """The CPUs this process may run on (its affinity where the system says, else every core)."""
+    return len(_cpus() or ()) or os.cpu_count() or 1
+
+
 def _read_sample() -> tuple[float, int, int, int] | None:
     """``(time, total, busy, own)``: clock ticks of this process's CPUs in ``/proc/stat`` (all, and busy)
     and this process's own CPU time (``/proc/self/stat``); None where they cannot be read."""
@@ -164,7 +170,7 @@ def free_cores() -> float | None:
     d_total, d_busy, d_own = new[1] - _sample[1], new[2] - _sample[2], new[3] - _sample[3]
     if d_total <= 0:  # too short a window to tell: keep the last estimate
         return _estimate
-    ncpu = len(_cpus() or ()) or os.cpu_count() or 1
+    ncpu = usable_cores()
     others = min(max((d_busy - d_own) / d_total, 0.0), 1.0)  # share of the CPUs' time others used
     _sample, _estimate = new, ncpu * (1.0 - others)
     return _estimate

@@ -11,11 +11,15 @@ conditional distributions that placing a missing object needs. No gradient flows
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
@@ -48,6 +52,8 @@ __all__ = [
     "require_tensorboard",
     "summary_writer",
     "log_validation",
+    "model_cache",
+    "MODEL_CACHE_ENV",
 ]
 
 
@@ -491,13 +497,69 @@ def train(
     cfg = config or TrainConfig()
     dev = resolve_device(device)
     check_training_data(scenes)
+    cached = _cached_path(scenes, cfg, encoder, seed, validation, dev) if log_dir is None else None
+    if cached is not None and cached.exists():
+        from .models.model import load
+
+        return load(cached, device=dev)
     writer = summary_writer(log_dir) if log_dir is not None else None
     try:
         with torch_threads(1):  # tiny tensors; the training loop chooses threads for its batch
-            return _train(scenes, cfg, encoder, seed, progress, validation, writer, dev)
+            model = _train(scenes, cfg, encoder, seed, progress, validation, writer, dev)
     finally:
         if writer is not None:
             writer.close()
+    if cached is not None:
+        model.save(cached)  # atomic: a worker training the same model at once writes the same file
+    return model
+
+
+#: the environment variable that :func:`model_cache` sets (worker processes inherit it)
+MODEL_CACHE_ENV = "SCENESCORE_MODEL_CACHE"
+
+
+@contextmanager
+def model_cache(folder: str | os.PathLike) -> Iterator[Path]:
+    """Within the block (and in the worker processes started in it), :func:`train` keeps each model it
+    trains in ``folder`` and loads it instead of training it again when asked for the same one: the same
+    scenes, validation scenes, settings, seed and device, with the default encoder (a model trained with
+    another encoder, or with a TensorBoard log, is not kept). ``scenescore experiment all`` trains each
+    of its experiments' shared models once this way. The folder is only read within the block: models
+    from another version of the code are never mixed in."""
+    path = Path(folder)
+    path.mkdir(parents=True, exist_ok=True)
+    before = os.environ.get(MODEL_CACHE_ENV)
+    os.environ[MODEL_CACHE_ENV] = str(path)
+    try:
+        yield path
+    finally:
+        if before is None:
+            os.environ.pop(MODEL_CACHE_ENV, None)
+        else:
+            os.environ[MODEL_CACHE_ENV] = before
+
+
+def _cached_path(
+    scenes: Sequence[Scene],
+    cfg: TrainConfig,
+    encoder: Encoder | None,
+    seed: int,
+    validation: Sequence[Scene],
+    device: torch.device,
+) -> Path | None:
+    """Where :func:`model_cache` keeps the model of this training, None outside one or with an encoder."""
+    folder = os.environ.get(MODEL_CACHE_ENV)
+    if not folder or encoder is not None:
+        return None
+    what = {
+        "scenes": [s.to_dict() for s in scenes],
+        "validation": [s.to_dict() for s in validation],
+        "config": cfg.to_dict(),
+        "seed": int(seed),
+        "device": str(device),
+    }
+    key = hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
+    return Path(folder) / f"{key}.ckpt"
 
 
 def _train(

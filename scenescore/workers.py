@@ -17,7 +17,7 @@ from multiprocessing import get_context
 from multiprocessing.pool import Pool
 from typing import Any, TypeVar
 
-__all__ = ["worker_pool", "map_in_workers", "PARENT_POLL_S"]
+__all__ = ["worker_pool", "map_in_workers", "default_jobs", "PARENT_POLL_S"]
 
 T = TypeVar("T")
 Log = Callable[[str], None]
@@ -34,6 +34,16 @@ def _exit_with_parent(parent: int) -> None:
         os._exit(1)
 
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def default_jobs(device: Any = None) -> int:
+    """Worker processes an experiment runs in when not told: one per usable core on the CPU, one where
+    the work goes to an accelerator (its processes would share one device and its memory)."""
+    from .threads import usable_cores
+
+    if device is not None and getattr(device, "type", str(device)) != "cpu":
+        return 1
+    return usable_cores()
 
 
 @contextmanager

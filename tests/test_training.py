@@ -211,3 +211,34 @@ def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
     assert bool((plain.age == 0).all()) and int(plain.movable.sum(dim=-1).max()) > 1
     with pytest.raises(ConfigError, match="reanchor_restart"):
         TrainConfig(reanchor_restart=1.5)
+
+
+def test_model_cache_trains_each_model_once_and_only_within_its_block(tmp_path, monkeypatch):
+    import os
+
+    from scenescore import training
+    from scenescore.training import MODEL_CACHE_ENV, model_cache
+
+    scenes = _offset_scenes(6, 0)
+    cfg = replace(CFG, iterations=3)
+    with model_cache(tmp_path / "m") as folder:
+        first = train(scenes, cfg, seed=1, progress=False)
+        assert len(list(folder.glob("*.ckpt"))) == 1
+        real = training._train
+
+        def never(*a, **k):
+            raise AssertionError("trained again")
+
+        monkeypatch.setattr(training, "_train", never)
+        again = train(scenes, cfg, seed=1, progress=False)  # loaded, not trained
+        x = torch.stack([torch.as_tensor(s.poses(), dtype=torch.float32) for s in scenes])
+        st = first.tensors(scenes)
+        assert torch.equal(first.energy(x, st), again.energy(x, again.tensors(scenes)))
+        monkeypatch.setattr(training, "_train", real)
+        train(scenes, cfg, seed=2, progress=False)  # another seed: another model
+        train(scenes, cfg, encoder=FootprintEncoder(), seed=1, progress=False)  # an encoder: not kept
+        assert len(list(folder.glob("*.ckpt"))) == 2
+    assert MODEL_CACHE_ENV not in os.environ  # outside the block nothing is read or kept
+    monkeypatch.setattr(training, "_train", never)
+    with pytest.raises(AssertionError, match="trained again"):
+        train(scenes, cfg, seed=1, progress=False)

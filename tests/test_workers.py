@@ -82,3 +82,35 @@ def test_workers_exit_when_their_parent_is_killed_outright(tmp_path):
         assert _wait_gone(pids, 10.0) == []
     finally:
         run.kill()
+
+
+def test_default_jobs_is_one_per_usable_core_on_the_cpu(monkeypatch):
+    import torch
+
+    from scenescore import threads
+    from scenescore.workers import default_jobs
+
+    monkeypatch.setattr(threads, "_cpus", lambda: {0, 3, 5})  # the affinity, not the machine's count
+    assert threads.usable_cores() == 3
+    assert default_jobs() == 3 and default_jobs(torch.device("cpu")) == 3
+    assert default_jobs(torch.device("cuda", 0)) == 1  # one accelerator: its processes would share it
+
+
+def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tmp_path):
+    from scenescore import workers
+    from scenescore.cli import main
+    from scenescore.experiments import heatmap
+
+    seen = {}
+
+    def fake_run(**kw):  # the heatmap runs in-process: stop right after the jobs are chosen
+        raise SystemExit(0)
+
+    monkeypatch.setattr(workers, "default_jobs", lambda device=None: seen.setdefault("jobs", 2))
+    monkeypatch.setattr(heatmap, "run", fake_run)
+    try:
+        main(["experiment", "heatmap", "--quick", "--out", str(tmp_path / "h")])
+    except SystemExit:
+        pass
+    assert seen == {"jobs": 2}
+    assert "experiment: 2 worker processes, one per usable core" in capsys.readouterr().out

@@ -46,9 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--jobs",
         type=int,
-        default=1,
-        help="worker processes, one thread each (default 1; up to the number of cores pays): compose, "
-        "missing and novel run their seeds in them, zoo its scenario and seed pairs, tidy its scenarios",
+        default=None,
+        help="worker processes, one thread each (default: one per usable core, 1 with --device cuda; "
+        "1 runs everything in this process): compose, missing and novel run their seeds in them, zoo its "
+        "scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
     )
     p.add_argument(
         "--energy-only",
@@ -102,16 +103,37 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.seeds < 1:
+        raise UserError(f"--seeds must be at least 1, got {args.seeds}")
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs must be at least 1, got {args.jobs}")
+    args.device = device_of(args)  # checked before any work; every runner passes it on
+    if args.jobs is None:
+        from ..workers import default_jobs
+
+        args.jobs = default_jobs(args.device)
+        if args.jobs > 1:
+            print(f"experiment: {args.jobs} worker processes, one per usable core (--jobs 1: one process)")
+    if args.name != "all":
+        return _run_each(args, [args.name])
+    import tempfile
+
+    from ..training import model_cache
+
+    root = args.out or Path("runs") / "experiment-all"
+    root.mkdir(parents=True, exist_ok=True)
+    # a model that two experiments train alike (the dining energy of Table 1 and of tidying, say) is
+    # trained once; the folder lives as long as this run, so no model of other code is ever read
+    with tempfile.TemporaryDirectory(prefix=".models-", dir=root) as folder, model_cache(folder):
+        return _run_each(args, EXPERIMENTS)
+
+
+def _run_each(args: argparse.Namespace, names: list[str]) -> int:
+    """Each experiment of ``names`` in turn, its table printed and written; with ``all``, the report."""
     import torch
 
     from ..experiments.report import write_results
 
-    if args.seeds < 1:
-        raise UserError(f"--seeds must be at least 1, got {args.seeds}")
-    if args.jobs < 1:
-        raise UserError(f"--jobs must be at least 1, got {args.jobs}")
-    args.device = device_of(args)  # checked before any work; every runner passes it on
-    names = EXPERIMENTS if args.name == "all" else [args.name]
     sections: list[str] = []
     for name in names:
         out = args.out or Path("runs") / f"experiment-{name}"
