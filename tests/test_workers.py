@@ -98,19 +98,45 @@ def test_default_jobs_is_one_per_usable_core_on_the_cpu(monkeypatch):
 
 def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tmp_path):
     from scenescore import workers
-    from scenescore.cli import main
-    from scenescore.experiments import heatmap
+    from scenescore.cli import experiment, main
 
-    seen = {}
+    jobs = []
 
-    def fake_run(**kw):  # the heatmap runs in-process: stop right after the jobs are chosen
-        raise SystemExit(0)
+    def heatmap(args, out):
+        jobs.append(args.jobs)
+        return "## heatmap", []
 
-    monkeypatch.setattr(workers, "default_jobs", lambda device=None: seen.setdefault("jobs", 2))
-    monkeypatch.setattr(heatmap, "run", fake_run)
-    try:
-        main(["experiment", "heatmap", "--quick", "--out", str(tmp_path / "h")])
-    except SystemExit:
-        pass
-    assert seen == {"jobs": 2}
+    monkeypatch.setattr(workers, "default_jobs", lambda device=None: 2)
+    monkeypatch.setattr(experiment, "RUNNERS", {**experiment.RUNNERS, "heatmap": heatmap})
+    assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0
     assert "experiment: 2 worker processes, one per usable core" in capsys.readouterr().out
+    assert main(["experiment", "heatmap", "--jobs", "1", "--out", str(tmp_path / "h")]) == 0
+    assert jobs == [2, 1] and "worker processes" not in capsys.readouterr().out
+
+
+def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(monkeypatch, tmp_path):
+    import os
+
+    from scenescore.cli import experiment, main
+    from scenescore.training import MODEL_CACHE_ENV
+
+    seen = []
+
+    def runner(name):
+        def run(args, out):
+            seen.append((name, os.environ.get(MODEL_CACHE_ENV)))
+            return f"## {name}", []
+
+        return run
+
+    monkeypatch.setattr(experiment, "RUNNERS", {n: runner(n) for n in experiment.EXPERIMENTS})
+    assert main(["experiment", "all", "--jobs", "1", "--out", str(tmp_path / "all")]) == 0
+    folders = {f for _, f in seen}
+    assert [n for n, _ in seen] == experiment.EXPERIMENTS and len(folders) == 1
+    (folder,) = folders
+    assert folder is not None and folder.startswith(str(tmp_path / "all"))
+    assert not os.path.exists(folder) and MODEL_CACHE_ENV not in os.environ  # gone with the run
+    assert (tmp_path / "all" / "report.md").exists()
+    seen.clear()
+    assert main(["experiment", "heatmap", "--jobs", "1", "--out", str(tmp_path / "h")]) == 0
+    assert seen == [("heatmap", None)]  # one experiment alone keeps no models
