@@ -62,20 +62,32 @@ def worker_pool(jobs: int) -> Iterator[Pool]:
         pool.join()
 
 
-def map_in_workers(fn: Callable[..., T], items: Sequence[Any], jobs: int = 1, log: Log = print) -> list[T]:
+def map_in_workers(
+    fn: Callable[..., T], items: Sequence[Any], jobs: int = 1, log: Log = print, bar: str | None = None
+) -> list[T]:
     """``fn(item, log=log)`` for each of ``items``, in order. With ``jobs > 1``, in that many worker
     processes of one torch thread each (``fn`` must pickle: a module-level function or a
     :func:`functools.partial` of one); each item's log lines are printed when it finishes, and its
-    result does not depend on ``jobs``."""
+    result does not depend on ``jobs``. ``bar``: with workers, a progress bar of the items done under
+    that name (on a terminal; the log lines print above it)."""
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1 or len(items) <= 1:
         return [fn(item, log=log) for item in items]
+    from tqdm.auto import tqdm
+
     done: dict[int, T] = {}
-    with worker_pool(min(jobs, len(items))) as pool:
+    with (
+        worker_pool(min(jobs, len(items))) as pool,
+        tqdm(
+            total=len(items), desc=bar, disable=None if bar else True, unit="task", dynamic_ncols=True
+        ) as shown,
+    ):
         for k, value, lines in pool.imap_unordered(_one, [(fn, k, item) for k, item in enumerate(items)]):
-            for line in lines:
-                log(line)
+            with shown.external_write_mode():
+                for line in lines:
+                    log(line)
+            shown.update()
             done[k] = value
     return [done[k] for k in range(len(items))]
 

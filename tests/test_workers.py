@@ -140,3 +140,17 @@ def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(mo
     seen.clear()
     assert main(["experiment", "heatmap", "--jobs", "1", "--out", str(tmp_path / "h")]) == 0
     assert seen == [("heatmap", None)]  # one experiment alone keeps no models
+
+
+def _square(x: int, log) -> int:
+    log(f"item {x}")
+    return x * x
+
+
+def test_map_in_workers_with_a_bar_keeps_results_in_order_and_every_log_line(capsys):
+    from scenescore.workers import map_in_workers
+
+    lines: list[str] = []
+    assert map_in_workers(_square, [3, 1, 2], jobs=2, log=lines.append, bar="squares") == [9, 1, 4]
+    assert sorted(lines) == ["item 1", "item 2", "item 3"]
+    assert "squares" not in capsys.readouterr().err  # not a terminal: no bar drawn

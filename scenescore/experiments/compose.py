@@ -196,7 +196,9 @@ def run(
         device=device,
         refine_options=res.refine_options,
     )
-    for counts, uniq, seconds in map_in_workers(one, list(range(seeds)), jobs, log):
+    for counts, uniq, seconds in map_in_workers(
+        one, list(range(seeds)), jobs, log, "Fig. 4 seeds" if progress else None
+    ):
         for m in chosen:
             res.correct.setdefault(m, []).append(counts[m])
             res.distinct.setdefault(m, []).append(uniq[m])

@@ -113,7 +113,10 @@ def run(
     tasks = [(seed, m) for seed in range(seeds) for m in chosen]
     res = MissingResult()
     for (_, m), (figs, dt) in zip(
-        tasks, map_in_workers(one, tasks, 1 if scenes_fn is not None else jobs, log)
+        tasks,
+        map_in_workers(
+            one, tasks, 1 if scenes_fn is not None else jobs, log, "Table 1" if progress else None
+        ),
     ):
         res.per_seed.setdefault(m, []).append(figs)
         res.seconds[m] = res.seconds.get(m, 0.0) + dt

@@ -206,7 +206,9 @@ def run(
         graphs={},
     )
     tasks = [(seed, rule, m) for seed in range(seeds) for rule in rules for m in chosen]
-    errors = dict(zip(tasks, map_in_workers(one, tasks, 1 if here else jobs, log)))
+    errors = dict(
+        zip(tasks, map_in_workers(one, tasks, 1 if here else jobs, log, "Table 2" if progress else None))
+    )
     res = NovelResult()
     for seed in range(seeds):
         for m in chosen:

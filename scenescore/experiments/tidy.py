@@ -332,7 +332,9 @@ def run(
         device=device,
         progress=progress and jobs == 1,
     )
-    parts = dict(zip(scenarios, map_in_workers(one, list(scenarios), jobs, log)))
+    parts = dict(
+        zip(scenarios, map_in_workers(one, list(scenarios), jobs, log, "tidy" if progress else None))
+    )
     res = TidyRun(efforts=tuple(efforts))
     for name in scenarios:  # in the order asked, whatever order the workers finished in
         part = parts[name]

@@ -259,7 +259,7 @@ def run(
         place=place,
         val=val,
     )
-    done = dict(zip(tasks, map_in_workers(pair, tasks, jobs, log)))
+    done = dict(zip(tasks, map_in_workers(pair, tasks, jobs, log, "zoo" if progress else None)))
     res = ZooResult()
     for name in chosen:
         sc = get(name)

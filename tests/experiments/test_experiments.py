@@ -34,7 +34,19 @@ def test_novel_rejects_unknown_method():
 
 def test_experiment_novel_cli_writes_results(tmp_path):
     rc = main(
-        ["experiment", "novel", "--seeds", "1", "--methods", "Oracle", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
+        [
+            "experiment",
+            "novel",
+            "--seeds",
+            "1",
+            "--methods",
+            "Oracle",
+            "--jobs",
+            "1",
+            "--quiet",
+            "--out",
+            str(tmp_path),
+        ]
     )
     assert rc == 0
     rows = json.loads((tmp_path / "results.json").read_text())
