@@ -466,10 +466,10 @@ def _select(
 
 
 def _swaps(problem: Problem, x: np.ndarray, best: float, chosen: list[str]) -> list[list[str]]:
-    """The chosen set with each of the :data:`SWAP_CANDIDATES` pairs of movable objects of different kinds
-    (:attr:`~scenescore.scene.SceneObject.kind`: category or size) not in it whose exchange at the poses ``x (N, 3)`` (each at the other's position,
-    with its own heading or the other's, the better) lowers the whole cost below ``best`` the most; one
-    batched cost evaluation."""
+    """The chosen set with each of the :data:`SWAP_CANDIDATES` pairs of movable objects not in it, of
+    different kinds (:attr:`~scenescore.scene.SceneObject.kind`: category or size), whose exchange at
+    the poses ``x (N, 3)`` (each at the other's position, with its own heading or the other's, the
+    better) lowers the whole cost below ``best`` the most; one batched cost evaluation."""
     scene = problem.scene
     free = [n for n in problem.movable if n not in chosen]
     pairs = [(a, b) for i, a in enumerate(free) for b in free[i + 1 :] if scene[a].kind != scene[b].kind]

@@ -125,20 +125,19 @@ def run(args: argparse.Namespace) -> int:
     # a model that two experiments train alike (the dining energy of Table 1 and of tidying, say) is
     # trained once; the folder lives as long as this run, so no model of other code is ever read
     with tempfile.TemporaryDirectory(prefix=".models-", dir=root) as folder, model_cache(folder):
-        return _run_each(args, EXPERIMENTS)
+        return _run_each(args, EXPERIMENTS, root)
 
 
-def _run_each(args: argparse.Namespace, names: list[str]) -> int:
-    """Each experiment of ``names`` in turn, its table printed and written; with ``all``, the report."""
+def _run_each(args: argparse.Namespace, names: list[str], root: Path | None = None) -> int:
+    """Each experiment of ``names`` in turn, its table printed and written; with ``root`` (``all``),
+    each in its own folder there and every table and figure in ``root/report.md``."""
     import torch
 
     from ..experiments.report import write_results
 
     sections: list[str] = []
     for name in names:
-        out = args.out or Path("runs") / f"experiment-{name}"
-        if args.name == "all":
-            out = (args.out or Path("runs") / "experiment-all") / name
+        out = root / name if root is not None else args.out or Path("runs") / f"experiment-{name}"
         t0 = time.perf_counter()
         torch.manual_seed(args.seed)
         md, rows = RUNNERS[name](args, out)
@@ -152,11 +151,9 @@ def _run_each(args: argparse.Namespace, names: list[str]) -> int:
             + f"\n\n{name}: {dt:.0f} s; table `{name}/table.md`, figures in `{name}/`"
             + "".join(f"\n\n![{f}]({name}/{f})" for f in figures)
         )
-    if args.name == "all":
+    if root is not None:
         from ..scene import atomic_write_text
 
-        root = args.out or Path("runs") / "experiment-all"
-        root.mkdir(parents=True, exist_ok=True)
         atomic_write_text(
             root / "report.md", "# SceneScore: the paper's experiments\n\n" + "\n\n".join(sections) + "\n"
         )
