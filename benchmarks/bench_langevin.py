@@ -1,8 +1,10 @@
-"""Langevin throughput (scene-steps per second) and training time, on this machine's CPU.
+"""Langevin throughput (scene-steps per second) and training time, on this machine's CPU or a GPU.
 
-    python benchmarks/bench_langevin.py [--threads 2] [--train-iterations 1200]
+    python benchmarks/bench_langevin.py [--threads 2] [--train-iterations 1200] [--device cuda]
 
-A scene-step is one Langevin step (energy, gradient, update, projection) for one scene of N objects.
+A scene-step is one Langevin step (energy, gradient, update, projection) for one scene of N objects;
+populations of 64, 512 and 5000 (Fig. 4's) particles. ``--device``: where the model, the particles
+and their random numbers live (the training too).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import time
 
 import torch
 
+from scenescore.devices import generator, resolve_device
 from scenescore.encoders import FootprintEncoder
 from scenescore.models import ScoreModel
 from scenescore.sampling import LangevinConfig, langevin, uniform_init
@@ -24,37 +27,53 @@ def throughput(model: ScoreModel, n: int, b: int, steps: int = 20) -> float:
     scene = DiningScenario(settings=(n + 3) // 4).generate(1, 0)[0]
     scene.objects = scene.objects[:n]
     fn = model.energy_fn(scene)
-    gen = torch.Generator().manual_seed(0)
-    lo, hi = torch.tensor(scene.bounds[0]), torch.tensor(scene.bounds[1])
+    dev = model.device
+    gen = generator(0, dev)
+    lo, hi = torch.tensor(scene.bounds[0], device=dev), torch.tensor(scene.bounds[1], device=dev)
     x0 = uniform_init((b, n), lo, hi, gen)
-    movable = torch.ones(n, dtype=torch.bool)
+    movable = torch.ones(n, dtype=torch.bool, device=dev)
     langevin(fn, x0, movable, lo, hi, LangevinConfig(steps=2), gen)  # warm-up
+    synchronize(dev)
     t = time.perf_counter()
     langevin(fn, x0, movable, lo, hi, LangevinConfig(steps=steps), gen)
+    synchronize(dev)
     return b * steps / (time.perf_counter() - t)
+
+
+def synchronize(device: torch.device) -> None:
+    """Wait for ``device``'s queued work (a no-op on the CPU), so that wall times are the work's."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, default=torch.get_num_threads())
     ap.add_argument("--train-iterations", type=int, default=TrainConfig().iterations)
+    ap.add_argument("--device", default="cpu", help="where the model and the particles live (default cpu)")
     args = ap.parse_args()
+    device = resolve_device(args.device, "--device")
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
     cfg = TrainConfig(iterations=args.train_iterations)
-    model = ScoreModel.create(FootprintEncoder(), **cfg.model)
+    model = ScoreModel.create(FootprintEncoder(), **cfg.model).to(device)
     c = model.config
+    where = torch.cuda.get_device_name(device) if device.type == "cuda" else f"{args.threads} CPU thread(s)"
     print(
-        f"Langevin throughput, torch {torch.__version__}, {args.threads} thread(s), "
+        f"Langevin throughput, torch {torch.__version__}, {where}, "
         f"hidden {c.hidden}, {c.layers} layers, {c.message} messages, {c.activation}"
     )
-    print("| N | B=64 scene-steps/s | B=512 scene-steps/s |")
-    print("|---:|---:|---:|")
+    sizes = (64, 512, 5000)
+    print("| N | " + " | ".join(f"B={b} scene-steps/s" for b in sizes) + " |")
+    print("|---:|" + "---:|" * len(sizes))
     for n in (4, 8, 12):
-        print(f"| {n} | {throughput(model, n, 64):,.0f} | {throughput(model, n, 512):,.0f} |", flush=True)
+        rates = [f"{throughput(model, n, b):,.0f}" for b in sizes]
+        print(f"| {n} | " + " | ".join(rates) + " |", flush=True)
     train_s, _ = DiningScenario().split(0)
+    synchronize(device)
     t = time.perf_counter()
-    m = train(train_s, cfg, seed=0, progress=False)
+    m = train(train_s, cfg, seed=0, progress=False, device=device)
+    synchronize(device)
     dt = time.perf_counter() - t
     print(
         f"\ntraining: {len(train_s)} dining scenes (8 objects), {cfg.iterations} iterations, "
