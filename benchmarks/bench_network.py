@@ -1,10 +1,18 @@
-"""The energy network's forward and backward: the message layer as it is against the same layer with
-f's last linear inside the sum over neighbours (as it was), same weights, interleaved runs.
+"""The energy network's forward and backward, two comparisons with the same weights, interleaved runs.
 
-    python benchmarks/bench_network.py [--scenes 256] [--repeat 5]
+    python benchmarks/bench_network.py [--scenes 256] [--repeat 5] [--population 5000]
 
-Prints seconds per forward+backward (gradient with respect to the poses, as a Langevin step takes
-it) for 12 and 28 objects, one thread, and the ratio.
+1. The message layer as it is against the same layer with f's last linear inside the sum over
+   neighbours (as it was): seconds per forward+backward (gradient with respect to the poses, as a
+   Langevin step takes it) for ``--scenes`` pose sets of 12 and 28 objects, and the ratio.
+2. A large population's gradient for the poses taken in pieces of about ``CACHE_EDGES`` edges, each
+   forward and backward at once (what sampling gets, ``weight_grads=False``), against the path that
+   also gives the weights their gradients (``weight_grads=True``: one pass, or, for a batch over one
+   chunk of ``scenescore.memory.CHUNK_BYTES`` as every batch here is, chunks that run the forward pass
+   twice): pose sets per second for ``--population`` pose sets of 4 to 12 objects and a fifth as many
+   of 20 and 28, the ratio, and the largest difference between the two gradients.
+
+One thread.
 """
 
 from __future__ import annotations
@@ -36,10 +44,39 @@ def seconds(net: EnergyNet, x: Tensor, f: Tensor, sz: Tensor, repeat: int) -> fl
     return (time.perf_counter() - t) / repeat
 
 
+def pose_grad(net: EnergyNet, x: Tensor, f: Tensor, sz: Tensor, weight_grads: bool) -> Tensor:
+    """The gradient of the summed energies with respect to the poses ``x``."""
+    xx = x.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(net(xx, f, sz, weight_grads=weight_grads).sum(), xx)
+    return g
+
+
+def pieces_table(net: EnergyNet, population: int, repeat: int) -> None:
+    """Comparison 2 of the module docstring."""
+    print(
+        "\n| objects | pose sets | in pieces (sets/s) | with weight gradients (sets/s) | ratio | largest gradient difference |"
+        "\n|---:|---:|---:|---:|---:|---:|"
+    )
+    for n in (4, 8, 12, 20, 28):
+        b = population if n <= 12 else max(population // 5, 1)
+        x, f, sz = torch.randn(b, n, 3), torch.randn(b, n, 7), torch.rand(b, n, 2)
+        rate: dict[bool, list[float]] = {True: [], False: []}
+        for _ in range(2):  # interleaved
+            for whole in (False, True):
+                t = time.perf_counter()
+                for _ in range(repeat):
+                    pose_grad(net, x, f, sz, weight_grads=whole)
+                rate[whole].append(b * repeat / (time.perf_counter() - t))
+        diff = (pose_grad(net, x, f, sz, False) - pose_grad(net, x, f, sz, True)).abs().max()
+        pieces, whole = max(rate[False]), max(rate[True])
+        print(f"| {n} | {b} | {pieces:,.0f} | {whole:,.0f} | {pieces / whole:.2f}x | {float(diff):.1e} |")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, default=256)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--population", type=int, default=5000, help="pose sets of 4 to 12 objects in table 2")
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
     torch.manual_seed(0)
@@ -60,6 +97,7 @@ def main(argv: list[str] | None = None) -> None:
             old.append(seconds(net, x, f, sz, args.repeat))
         _MessageLayer.forward = folded  # type: ignore[method-assign]
         print(f"| {n} | {min(new):.3f} | {min(old):.3f} | {min(old) / min(new):.2f}x |")
+    pieces_table(net, args.population, max(args.repeat // 2, 1))
 
 
 if __name__ == "__main__":

@@ -229,7 +229,10 @@ def test_scene_too_large_for_one_pose_set(monkeypatch, model):
 # -- chunked evaluation: the same numbers --------------------------------------------------------
 
 
-def test_chunked_energy_and_gradient_are_identical(monkeypatch, model):
+def test_chunked_energy_and_gradient_match_one_pass(monkeypatch, model):
+    """In chunks of 1 to 49 pose sets the energies are those of one pass; so is the gradient for the
+    poses (taken piece by piece, see EnergyNet.forward) to float rounding: a piece of one pose set
+    multiplies through the head as a vector, not a matrix."""
     scene = DiningScenario(settings=4).generate(1, 0)[0]
     fn = model.energy_fn(scene)
     n = len(scene) + 4  # with the walls
@@ -246,7 +249,7 @@ def test_chunked_energy_and_gradient_are_identical(monkeypatch, model):
         monkeypatch.setattr(mem, "CHUNK_BYTES", rows * model.net.row_bytes(n, True))
         xr = x.clone().requires_grad_(True)
         (gc,) = torch.autograd.grad(fn(xr).sum(), xr)
-        assert torch.equal(gc, g), rows
+        torch.testing.assert_close(gc, g, rtol=1e-6, atol=1e-5)
 
 
 def test_chunked_training_gradients_match(monkeypatch, model):
@@ -338,3 +341,43 @@ def test_collision_in_chunks_is_identical(monkeypatch):
         xr = x.clone().requires_grad_(True)
         (gc,) = torch.autograd.grad(term(xr).sum(), xr)
         assert torch.equal(gc, g)
+
+
+def test_energy_in_pieces_matches_one_pass(monkeypatch, model):
+    """A batch over CACHE_EDGES edges is taken in pieces on the CPU: the same energies, the same gradient
+    for the poses to float rounding, none for the weights; with weight gradients it stays one pass."""
+    import scenescore.models.network as network
+
+    scene = DiningScenario(settings=2).generate(1, 0)[0]
+    fn = model.energy_fn(scene)
+    n = len(scene) + 4  # with the walls
+    x = torch.randn(30, len(scene), 3, generator=torch.Generator().manual_seed(2))
+
+    def pose_grad() -> tuple[torch.Tensor, torch.Tensor]:
+        xr = x.clone().requires_grad_(True)
+        e = fn(xr)
+        (g,) = torch.autograd.grad(e.sum(), xr)
+        return e.detach(), g
+
+    with torch.no_grad():
+        e = fn(x)
+    e1, g = pose_grad()
+    pieces = []
+    real = network._PoseGradInPieces.apply
+
+    def counting(net, rows, *inputs):
+        pieces.append(rows)
+        return real(net, rows, *inputs)
+
+    monkeypatch.setattr(network._PoseGradInPieces, "apply", counting)
+    monkeypatch.setattr(network, "CACHE_EDGES", 4 * n * n)  # pieces of 4 pose sets
+    with torch.no_grad():
+        assert torch.equal(fn(x), e)
+    e2, g2 = pose_grad()
+    assert pieces == [4]
+    assert torch.equal(e2, e1)
+    torch.testing.assert_close(g2, g, rtol=1e-6, atol=1e-6)
+    model.zero_grad()
+    st = model.tensors([scene]).repeat(30)
+    model.energy(st.poses.clone().requires_grad_(True), st).sum().backward()  # training: one pass
+    assert pieces == [4] and all(p.grad is not None for p in model.net.layers.parameters())

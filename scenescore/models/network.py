@@ -124,6 +124,14 @@ def parameter_count(cfg: EnergyConfig) -> int:
     return total + h * h + h + h + 1  # head
 
 
+# on the CPU, one pass over more edges than this (pose sets x N x N) runs slower per pose set than the
+# same pass in pieces: its (B, N, N, H) tensors leave the cache and fresh large allocations fault in their
+# pages. Energies without a gradient, and a gradient for the poses alone (sampling, refinement), are then
+# taken piece by piece, each piece forward and backward at once (``python benchmarks/bench_network.py``:
+# 1.4 to 1.8 times the pose sets per second of the chunked path, 5000 pose sets of 4 to 12 objects and
+# 1000 of 20 and 28, one thread)
+CACHE_EDGES = 49152
+
 # floats per edge (i, j) of one pose set that evaluating the energy holds at its peak, measured (CPU,
 # float32) and rounded up: the edge features, then per message layer its (N, N, inner) tensors; with a
 # gradient every layer's are kept for the backward pass
@@ -306,11 +314,26 @@ class EnergyNet(nn.Module):
         gradient, each chunk is recomputed in the backward pass instead of kept), and the head sees the
         whole batch: the same numbers as one pass, in bounded memory. The chunked path has first
         derivatives only (no ``create_graph``); with ``weight_grads=False`` (sampling, which needs the
-        gradient with respect to the poses alone) it gives the weights none."""
+        gradient with respect to the poses alone) it gives the weights none.
+
+        On the CPU a batch of more than :data:`CACHE_EDGES` edges (or more rows than one chunk) is taken
+        in pieces of at most that many when it needs no gradient, or (with ``weight_grads=False``) a
+        gradient for the poses alone, each piece forward and backward at once, without the chunked
+        path's second forward pass (:class:`_PoseGradInPieces`); the head sees the whole batch. The same
+        energies, the same gradients to float rounding, faster."""
         b, n, _ = poses.shape
         grad = torch.is_grad_enabled()
         rows = self.chunk_rows(n, grad, poses.element_size())
         args = (poses, feats, sizes, mask, nodes, round)
+        piece = min(rows, max(1, CACHE_EDGES // (n * n)))
+        if poses.device.type == "cpu" and b > piece:
+            if not grad:
+                pooled = torch.cat(
+                    [_pooled_of(self, _rows_of(args, b, a, a + piece)) for a in range(0, b, piece)]
+                )
+                return self.head(pooled).squeeze(-1)
+            if not weight_grads and poses.requires_grad:
+                return _PoseGradInPieces.apply(self, piece, *args)
         if b <= rows:
             pooled = self._pooled(*args)
         else:
@@ -386,9 +409,7 @@ class _ChunkedPooled(torch.autograd.Function):
         ctx.net, ctx.rows, ctx.b = net, rows, b
         ctx.save_for_backward(*args)
         with torch.no_grad():
-            return torch.cat(
-                [_pooled_of(net, [_rows(t, b, a, a + rows) for t in args]) for a in range(0, b, rows)]
-            )
+            return torch.cat([_pooled_of(net, _rows_of(args, b, a, a + rows)) for a in range(0, b, rows)])
 
     @staticmethod
     @once_differentiable
@@ -405,7 +426,7 @@ class _ChunkedPooled(torch.autograd.Function):
         param_grads: list[Tensor | None] = [None] * len(params)
         for a in range(0, b, rows):
             with torch.enable_grad():
-                part = [_rows(t, b, a, a + rows) for t in args]
+                part = _rows_of(args, b, a, a + rows)
                 part = [
                     t.detach().requires_grad_(True) if t is not None and want[k] else t
                     for k, t in enumerate(part)
@@ -436,6 +457,35 @@ class _ChunkedPooled(torch.autograd.Function):
         return (None, None, *out_args, *param_grads)
 
 
+class _PoseGradInPieces(torch.autograd.Function):
+    """The energy of a batch and its gradient with respect to the poses, ``rows`` pose sets at a time: each
+    piece runs forward and backward at once, while its tensors are in cache, and keeps only the gradient
+    ``(rows, N, 3)``; the backward pass scales it. The energies come from the head over the whole batch,
+    as in one pass. The other inputs and the weights get no gradient."""
+
+    @staticmethod
+    def forward(ctx: Any, net: EnergyNet, rows: int, *inputs: Tensor | None) -> Tensor:
+        b = _first(inputs).shape[0]
+        pooled, grads = [], []
+        for a in range(0, b, rows):
+            part = [None if t is None else t.detach() for t in _rows_of(inputs, b, a, a + rows)]
+            with torch.enable_grad():
+                poses = _first(part).requires_grad_(True)
+                p = _pooled_of(net, [poses, *part[1:]])
+                (g,) = torch.autograd.grad(net.head(p).sum(), poses)
+            pooled.append(p.detach())
+            grads.append(g)
+        ctx.save_for_backward(torch.cat(grads))
+        with torch.no_grad():
+            return net.head(torch.cat(pooled)).squeeze(-1)
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
+        (g,) = ctx.saved_tensors
+        return (None, None, grad[:, None, None] * g, None, None, None, None, None)
+
+
 def _first(args: Sequence[Tensor | None]) -> Tensor:
     poses = args[0]
     assert poses is not None
@@ -445,6 +495,11 @@ def _first(args: Sequence[Tensor | None]) -> Tensor:
 def _pooled_of(net: EnergyNet, args: Sequence[Tensor | None]) -> Tensor:
     """``net._pooled`` of the six arguments of :meth:`EnergyNet.forward` (``poses`` first, never None)."""
     return net._pooled(_first(args), *args[1:])
+
+
+def _rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:
+    """Rows ``a:z`` of each of a batch's inputs (see :func:`_rows`)."""
+    return [_rows(t, b, a, z) for t in args]
 
 
 def _rows(t: Tensor | None, b: int, a: int, z: int) -> Tensor | None:
