@@ -328,10 +328,7 @@ class EnergyNet(nn.Module):
         piece = min(rows, max(1, CACHE_EDGES // (n * n)))
         if poses.device.type == "cpu" and b > piece:
             if not grad:
-                pooled = torch.cat(
-                    [_pooled_of(self, _rows_of(args, b, a, a + piece)) for a in range(0, b, piece)]
-                )
-                return self.head(pooled).squeeze(-1)
+                return self.head(_pooled_in_chunks(self, piece, args)).squeeze(-1)
             if not weight_grads and poses.requires_grad:
                 return _PoseGradInPieces.apply(self, piece, *args)
         if b <= rows:
@@ -409,7 +406,7 @@ class _ChunkedPooled(torch.autograd.Function):
         ctx.net, ctx.rows, ctx.b = net, rows, b
         ctx.save_for_backward(*args)
         with torch.no_grad():
-            return torch.cat([_pooled_of(net, _rows_of(args, b, a, a + rows)) for a in range(0, b, rows)])
+            return _pooled_in_chunks(net, rows, args)
 
     @staticmethod
     @once_differentiable
@@ -495,6 +492,12 @@ def _first(args: Sequence[Tensor | None]) -> Tensor:
 def _pooled_of(net: EnergyNet, args: Sequence[Tensor | None]) -> Tensor:
     """``net._pooled`` of the six arguments of :meth:`EnergyNet.forward` (``poses`` first, never None)."""
     return net._pooled(_first(args), *args[1:])
+
+
+def _pooled_in_chunks(net: EnergyNet, rows: int, args: Sequence[Tensor | None]) -> Tensor:
+    """:func:`_pooled_of` of a batch's six inputs, ``rows`` pose sets at a time, concatenated."""
+    b = _first(args).shape[0]
+    return torch.cat([_pooled_of(net, _rows_of(args, b, a, a + rows)) for a in range(0, b, rows)])
 
 
 def _rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:
