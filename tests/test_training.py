@@ -109,6 +109,42 @@ def test_size_noise_is_seeded_and_changes_training():
         TrainConfig(size_noise=-0.1)
 
 
+def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch):
+    import scenescore.training as training
+
+    torch.set_num_threads(1)
+    scenes = _offset_scenes(6, 1)
+    cfg = TrainConfig(
+        iterations=8, batch_scenes=4, negatives=4, average=0.5, model={"hidden": 16, "layers": 1}
+    )
+    seen = []  # the weights after each averaged iteration
+
+    def record(shadow, params, decay):
+        assert decay == 0.25  # 0.5 lowered to 1 - 3 / 4 for a run that averages 4 iterations
+        seen.append([p.detach().clone() for p in params])
+        return average(shadow, params, decay)
+
+    average = training._average
+    monkeypatch.setattr(training, "_average", record)
+    model = train(scenes, cfg, seed=2, progress=False)
+    assert len(seen) == 4  # iterations 4 .. 7
+    decay = 0.25
+    want = seen[0]
+    for w in seen[1:]:
+        want = [decay * a + (1 - decay) * b for a, b in zip(want, w)]
+    for got, exp in zip(model.net.parameters(), want):
+        torch.testing.assert_close(got, exp)
+    assert not torch.equal(next(model.net.parameters()), seen[-1][0])  # not the last iterate
+    monkeypatch.undo()
+    last = train(scenes, replace(cfg, average=0.0), seed=2, progress=False)
+    torch.testing.assert_close(next(last.net.parameters()), seen[-1][0])  # averaging off: the last iterate
+    again = train(scenes, cfg, seed=2, progress=False)
+    assert torch.equal(next(again.net.parameters()), next(model.net.parameters()))
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ConfigError, match="average"):
+            TrainConfig(average=bad)
+
+
 def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
     scenes = _offset_scenes(4, 1)
     small = {"iterations": 2, "batch_scenes": 2, "negatives": 2}

@@ -56,6 +56,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--absolute", action="store_true", help="the Abs ablation: absolute poses, no edges")
     p.add_argument(
+        "--average",
+        type=float,
+        default=None,
+        help="the trained model is the moving average of the weights over the second half of training, "
+        "with this decay per iteration (default 0.99; 0: the last iterate)",
+    )
+    p.add_argument(
         "--raw-edges",
         action="store_true",
         help="no edge encoder: the message layers read the raw relative poses, trained as the earlier "
@@ -149,7 +156,7 @@ def run_train(args: argparse.Namespace) -> int:
     from ..training import RAW_EDGES, TrainConfig, check_training_data, split_validation, train
 
     # settings first: a bad value fails before any data is read or any training is done
-    given = {"iterations": args.iterations, "negatives": args.negatives}
+    given = {"iterations": args.iterations, "negatives": args.negatives, "average": args.average}
     raw = RAW_EDGES if args.raw_edges else {}
     cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None}, **raw)
     device = device_of(args)
