@@ -613,7 +613,8 @@ def _train(
     k = cfg.negatives
     history: list[float] = []
     shadow: list[torch.Tensor] | None = None  # the weights' moving average (TrainConfig.average)
-    decay = max(min(cfg.average, 1 - 3 / max(cfg.iterations - cfg.iterations // 2, 1)), 0.0)
+    averaged_from = cfg.iterations // 2  # the first iteration in the average
+    decay = max(min(cfg.average, 1 - 3 / max(cfg.iterations - averaged_from, 1)), 0.0)
     t0 = time.perf_counter()
     bar = tqdm(range(cfg.iterations), desc="train", disable=not progress, unit="it", dynamic_ncols=True)
     for it in bar:
@@ -687,7 +688,7 @@ def _train(
                 writer.add_scalar("train/infonce", infonce.item(), it)
                 writer.add_scalar("train/lr", opt.param_groups[0]["lr"], it)
             sched.step()
-            if decay and it >= cfg.iterations // 2:
+            if decay and it >= averaged_from:
                 shadow = _average(shadow, list(model.net.parameters()), decay)
             history.append(loss.item())
             if it % 20 == 0:
