@@ -529,7 +529,7 @@ MODEL_CACHE_ENV = "SCENESCORE_MODEL_CACHE"
 def model_cache(folder: str | os.PathLike) -> Iterator[Path]:
     """Within the block (and in the worker processes started in it), :func:`train` keeps each model it
     trains in ``folder`` and loads it instead of training it again when asked for the same one: the same
-    scenes, validation scenes, settings, seed and device, with the default encoder (a model trained with
+    scenes, validation scenes, settings, seed, device and torch thread count, with the default encoder (a model trained with
     another encoder, or with a TensorBoard log, is not kept). ``scenescore experiment all`` trains each
     of its experiments' shared models once this way. The folder is only read within the block: models
     from another version of the code are never mixed in."""
@@ -564,6 +564,9 @@ def _cached_path(
         "config": cfg.to_dict(),
         "seed": int(seed),
         "device": str(device),
+        # the thread count changes the trained weights (float rounding): a model trained in the main
+        # process's threads is not the one a one-thread worker would train
+        "threads": torch.get_num_threads(),
     }
     key = hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
     return Path(folder) / f"{key}.ckpt"

@@ -274,6 +274,13 @@ def test_model_cache_trains_each_model_once_and_only_within_its_block(tmp_path, 
         train(scenes, cfg, seed=2, progress=False)  # another seed: another model
         train(scenes, cfg, encoder=FootprintEncoder(), seed=1, progress=False)  # an encoder: not kept
         assert len(list(folder.glob("*.ckpt"))) == 2
+        threads = torch.get_num_threads()
+        torch.set_num_threads(threads + 1)  # another thread count rounds otherwise: another model
+        try:
+            train(scenes, cfg, seed=1, progress=False)
+        finally:
+            torch.set_num_threads(threads)
+        assert len(list(folder.glob("*.ckpt"))) == 3
     assert MODEL_CACHE_ENV not in os.environ  # outside the block nothing is read or kept
     monkeypatch.setattr(training, "_train", never)
     with pytest.raises(AssertionError, match="trained again"):

@@ -395,7 +395,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         names,
         efforts=efforts,
         test_scenes=test_scenes,
-        seed=args.seed,
+        seeds=range(args.seed, args.seed + args.seeds),
         config=cfg,
         log=log,
         device=args.device,
@@ -409,7 +409,8 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         f"Scenarios {', '.join(names)}; {test_scenes} test scene(s) each, displaced five ways (one or two "
         f"objects shifted by {' or '.join(f'{f:g}' for f in tidy.SIZES)} of the bounds' half-extent and turned, "
         "or two objects of different kinds swapped); training "
-        f"{cfg.iterations} iterations; seed {args.seed}. accepted: the scenario's check; precision and recall "
+        f"{cfg.iterations} iterations; {_seeds_named(args.seed, args.seeds)}, each its own split, model and "
+        "displacements, the cases pooled. accepted: the scenario's check; precision and recall "
         "of the moved objects against the displaced ones; displacement and put-back in metres (centre and tip), "
         "ratio their totals' quotient; plan steps include buffer moves; no plan: the targets admit none (one "
         "outside the bounds, say); plans valid: of the plans made, the share valid when replayed.\n\n"
@@ -420,6 +421,11 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         "with what each method moved and whether the check accepted it: cases.json."
     )
     return md, res.rows()
+
+
+def _seeds_named(first: int, count: int) -> str:
+    """``seed 0`` or ``seeds 0 to 2``."""
+    return f"seed {first}" if count == 1 else f"seeds {first} to {first + count - 1}"
 
 
 RUNNERS = {

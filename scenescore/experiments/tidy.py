@@ -138,6 +138,7 @@ class MessyCase:
     displaced: list[str]
     kind: str  # "shift" or "swap"
     size: float  # the shift as a fraction of the half-extent (0 for swaps)
+    seed: int = 0  # the seed of the scenario's split, the model's training and the displacement
 
     @property
     def putback(self) -> float:
@@ -186,7 +187,7 @@ def messy_cases(
                         x[i, 2] += rng.uniform(-math.pi / 3, math.pi / 3)
                 messy = truth.with_poses(x)
                 if _feasible(messy, truth) and not accepts(scenario, messy, truth):
-                    out.append(MessyCase(scenario.name, truth, messy, sorted(chosen), kind, frac))
+                    out.append(MessyCase(scenario.name, truth, messy, sorted(chosen), kind, frac, seed))
                     break
     return out
 
@@ -268,6 +269,7 @@ class TidyRun:
             out.append(
                 {
                     "scenario": c.scenario,
+                    "seed": c.seed,
                     "kind": c.kind,
                     "size": c.size,
                     "displaced": c.displaced,
@@ -302,7 +304,7 @@ def run(
     scenarios: tuple[str, ...] = SCENARIOS,
     efforts: tuple[float, ...] = EFFORTS,
     test_scenes: int = 3,
-    seed: int = 0,
+    seeds: Sequence[int] = (0,),
     config: TrainConfig | None = None,
     sizes: tuple[float, ...] = SIZES,
     log: Callable[[str], None] = print,
@@ -312,19 +314,22 @@ def run(
     device: Any = None,
     jobs: int = 1,
 ) -> TidyRun:
-    """Train per scenario (on ``device``), make the messy cases, run every method on them (``options``:
-    tidy's, ``place_options``: the baselines' placement; defaults: the library's). ``jobs > 1`` runs the
-    scenarios in that many worker processes of one thread each (the figures do not depend on it; each
-    method's seconds are then summed over the workers)."""
+    """Train per scenario and seed of ``seeds`` (on ``device``; each seed its own split, model and
+    displacements), make the messy cases, run every method on them (``options``: tidy's,
+    ``place_options``: the baselines' placement; defaults: the library's); the cases of every seed are
+    pooled. ``jobs > 1`` runs the scenario and seed pairs in that many worker processes of one thread
+    each (the figures do not depend on it; each method's seconds are then summed over the workers)."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise SceneError(f"tidy experiment: jobs must be a whole number >= 1, got {jobs!r}")
+    seeds = list(seeds)
+    if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
+        raise SceneError(f"tidy experiment: seeds must be one or more whole numbers >= 0, got {seeds!r}")
     for name in scenarios:
         get(name)  # an unknown name fails here, before any worker starts
     one = partial(
         run_scenario,
         efforts=tuple(efforts),
         test_scenes=test_scenes,
-        seed=seed,
         config=config,
         sizes=tuple(sizes),
         options=options,
@@ -332,12 +337,10 @@ def run(
         device=device,
         progress=progress and jobs == 1,
     )
-    parts = dict(
-        zip(scenarios, map_in_workers(one, list(scenarios), jobs, log, "tidy" if progress else None))
-    )
+    units = [(name, s) for name in scenarios for s in seeds]
+    parts = map_in_workers(one, units, jobs, log, "tidy" if progress else None)
     res = TidyRun(efforts=tuple(efforts))
-    for name in scenarios:  # in the order asked, whatever order the workers finished in
-        part = parts[name]
+    for part in parts:  # in the order asked, whatever order the workers finished in
         res.cases += part.cases
         for m, got in part.outcomes.items():
             res.outcomes.setdefault(m, []).extend(got)
@@ -346,10 +349,9 @@ def run(
 
 
 def run_scenario(
-    name: str,
+    unit: tuple[str, int],
     efforts: tuple[float, ...],
     test_scenes: int,
-    seed: int,
     config: TrainConfig | None,
     sizes: tuple[float, ...],
     options: TidyOptions | None,
@@ -358,7 +360,8 @@ def run_scenario(
     log: Callable[[str], None] = print,
     progress: bool = False,
 ) -> TidyRun:
-    """One scenario of :func:`run`: its cases and every method's outcomes and seconds."""
+    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds."""
+    name, seed = unit
     res = TidyRun(efforts=tuple(efforts))
     methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
     for m in methods:
@@ -374,7 +377,7 @@ def run_scenario(
     if not cases:
         raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
     log(
-        f"{name}: trained in {time.perf_counter() - t0:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases"
+        f"{name} seed {seed}: trained in {time.perf_counter() - t0:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases"
     )
     res.cases += cases
     messy = [c.messy for c in cases]
@@ -393,7 +396,7 @@ def run_scenario(
                 r.plan_made,
             )
             res.outcomes[method_name(e)].append(out)
-        log(f"{name}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+        log(f"{name} seed {seed}: {method_name(e)} {time.perf_counter() - t:.0f} s")
     t = time.perf_counter()
     blank = [c.messy.copy() for c in cases]
     for s in blank:
@@ -417,7 +420,7 @@ def run_scenario(
     res.outcomes["missing placement"] += [
         _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, filled)
     ]
-    log(f"{name}: baselines {time.perf_counter() - t:.0f} s")
+    log(f"{name} seed {seed}: baselines {time.perf_counter() - t:.0f} s")
     return res
 
 

@@ -234,10 +234,12 @@ def test_experiment_tidy_quick_writes_every_case(tmp_path):
     torch.set_num_threads(1)
     out = tmp_path / "tidy"
     argv = ["experiment", "tidy", "--quick", "--scenarios", "desk", "--iterations", "2", "--efforts", "1,3"]
-    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    assert main([*argv, "--seeds", "2", "--seed", "4", "--out", str(out), "--quiet"]) == 0
     cases = json.loads((out / "cases.json").read_text())
     rows = json.loads((out / "results.json").read_text())
     assert cases and rows[0]["cases"] == len(cases)
+    # each seed its own split and displacements, the cases pooled
+    assert {c["seed"] for c in cases} == {4, 5} and "seeds 4 to 5" in (out / "table.md").read_text()
     assert set(cases[0]["methods"]) == {
         "tidy (effort 1) default",
         "tidy (effort 3)",

@@ -87,3 +87,6 @@ def test_worker_processes_give_the_same_outcomes_in_the_order_asked():
     assert two.outcomes == one.outcomes
     with pytest.raises(SceneError, match="jobs must be a whole number >= 1"):
         T.run(("desk",), jobs=0, **kw)
+    for bad in ((), (-1,), (0.5,)):
+        with pytest.raises(SceneError, match="seeds must be one or more whole numbers >= 0"):
+            T.run(("desk",), seeds=bad, **kw)
