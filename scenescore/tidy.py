@@ -615,12 +615,15 @@ def _swap_draws(x: Tensor, scene: Scene, names: list[str]) -> None:
     pairs = _set_pairs(scene, names)
     if not pairs:
         return
-    swapped = torch.as_tensor(_exchanges(scene.poses(), pairs), dtype=x.dtype, device=x.device)
-    start = x.shape[0] - x.shape[0] // 4
-    for j in range(start, x.shape[0]):
-        i = (j - start) % len(pairs)
-        rows = list(pairs[i])
-        x[j, rows] = swapped[i + len(pairs) * (((j - start) // len(pairs)) % 2), rows]
+    swapped = torch.as_tensor(_exchanges(scene.poses(), pairs), dtype=x.dtype, device=x.device)  # (2P, N, 3)
+    p, start = len(pairs), x.shape[0] - x.shape[0] // 4
+    k = torch.arange(x.shape[0] - start, device=x.device)  # the last quarter's draws: k // p is the round
+    # each draw's row of ``swapped``: its pair, in every other round with its own heading
+    src = k % p + p * ((k // p) % 2)
+    for i, (a, b) in enumerate(pairs):
+        mine = k[k % p == i]  # (M,)
+        rows = torch.tensor([a, b], device=x.device)
+        x[start + mine[:, None], rows] = swapped[src[mine]][:, rows]
 
 
 def _scene_best(gains: list[tuple[int, str, float]], scenes: int) -> np.ndarray:

@@ -107,6 +107,14 @@ def test_categories_that_overlap_in_the_data_may_overlap_when_placed():
     hinge = non_overlap(model, scenes[0].without("lamp_0"))
     assert hinge is not None and hinge.pairs == [["lamp_0", "rug_0"]]
     assert overlapping(model, scenes[0], ["lamp_0"]) == []
+    # the reference is read once per stored dict, and again when training stores a new one
+    first = model.trust
+    assert first is not None and model.trust is first
+    model.info["trust"] = reference(model, scenes[:2]).to_dict()
+    again = model.trust
+    assert again is not first and again is not None and again.to_dict() == model.info["trust"]
+    model.info.pop("trust")
+    assert model.trust is None
 
 
 def test_covering_screens_more_candidates_where_the_objects_are_small_for_the_bounds():

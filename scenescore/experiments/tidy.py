@@ -1,7 +1,7 @@
 """Tidying messy scenes: which objects to move, how far, in what order, against what it buys.
 
-For each scenario (dining, desk, television and a few of the zoo's): train the energy on its training
-scenes; displace ``k`` objects of each test scene (shifted by a fraction of the bounds' half-extent in
+For each scenario (dining, desk, television and a few of the zoo's) and each seed (its own split of the
+scenes): train the energy on its training scenes; displace ``k`` objects of each test scene (shifted by a fraction of the bounds' half-extent in
 a random direction and turned, or two objects of different kinds swapped), keeping only messy scenes
 that are collision-free, inside the bounds and *rejected* by the scenario's check. Then, per method:
 

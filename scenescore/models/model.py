@@ -33,6 +33,7 @@ class ScoreModel(nn.Module):
         self.net = net
         self.encoder = encoder
         self.info: dict[str, Any] = dict(info or {})
+        self._trust_read: tuple[dict[str, Any], TrustReference] | None = None  # see ``trust``
 
     @classmethod
     def create(cls, encoder: Encoder, **config: Any) -> ScoreModel:
@@ -41,9 +42,15 @@ class ScoreModel(nn.Module):
 
     @property
     def trust(self) -> TrustReference | None:
-        """What placements are judged against (stored by training), or None for older checkpoints."""
+        """What placements are judged against (stored by training), or None for older checkpoints; read
+        once per ``info["trust"]`` dict (tidying asks for it hundreds of times; assign a new dict to
+        change it, as training does)."""
         d = self.info.get("trust")
-        return TrustReference.from_dict(d) if isinstance(d, dict) else None
+        if not isinstance(d, dict):
+            return None
+        if self._trust_read is None or self._trust_read[0] is not d:
+            self._trust_read = (d, TrustReference.from_dict(d))
+        return self._trust_read[1]
 
     @property
     def config(self) -> EnergyConfig:
