@@ -273,6 +273,12 @@ def test_swap_draws_put_each_pair_in_each_others_places():
     assert torch.equal(x[9, 0], now[1]) and torch.equal(x[9, 1], now[0])  # a <-> b
     assert torch.equal(x[10, 0], now[2]) and torch.equal(x[10, 2], now[0])  # a <-> c
     assert torch.equal(x[11, 1], now[2]) and torch.equal(x[11, 2], now[1])  # b <-> c
+    z = torch.zeros(24, 3, 3, dtype=torch.float64)  # two rounds: the second trades positions only
+    _swap_draws(z, scene, ["a", "b", "c"])
+    assert not z[:18].any() and torch.equal(z[18:21], x[9:12])
+    assert torch.equal(z[21, 0], torch.stack([now[1, 0], now[1, 1], now[0, 2]]))  # at b's spot, own heading
+    assert torch.equal(z[21, 1], torch.stack([now[0, 0], now[0, 1], now[1, 2]])) and not z[21, 2].any()
+    assert torch.equal(z[23, 2], torch.stack([now[1, 0], now[1, 1], now[2, 2]])) and not z[23, 0].any()
     y = torch.zeros(8, 3, 3, dtype=torch.float64)
     _swap_draws(y, scene, ["a"])  # one object: nothing to trade
     assert not y.any()
