@@ -529,10 +529,10 @@ MODEL_CACHE_ENV = "SCENESCORE_MODEL_CACHE"
 def model_cache(folder: str | os.PathLike) -> Iterator[Path]:
     """Within the block (and in the worker processes started in it), :func:`train` keeps each model it
     trains in ``folder`` and loads it instead of training it again when asked for the same one: the same
-    scenes, validation scenes, settings, seed, device and torch thread count, with the default encoder (a model trained with
-    another encoder, or with a TensorBoard log, is not kept). ``scenescore experiment all`` trains each
-    of its experiments' shared models once this way. The folder is only read within the block: models
-    from another version of the code are never mixed in."""
+    scenes, validation scenes, settings, seed, device and torch thread count, with the default encoder (a
+    model trained with another encoder, or with a TensorBoard log, is not kept). ``scenescore experiment
+    all`` trains each of its experiments' shared models once this way. The folder is only read within the
+    block: models from another version of the code are never mixed in."""
     path = Path(folder)
     path.mkdir(parents=True, exist_ok=True)
     before = os.environ.get(MODEL_CACHE_ENV)

@@ -1,9 +1,10 @@
 """Tidying messy scenes: which objects to move, how far, in what order, against what it buys.
 
 For each scenario (dining, desk, television and a few of the zoo's) and each seed (its own split of the
-scenes): train the energy on its training scenes; displace ``k`` objects of each test scene (shifted by a fraction of the bounds' half-extent in
-a random direction and turned, or two objects of different kinds swapped), keeping only messy scenes
-that are collision-free, inside the bounds and *rejected* by the scenario's check. Then, per method:
+scenes): train the energy on its training scenes; displace ``k`` objects of each test scene (shifted by
+a fraction of the bounds' half-extent in a random direction and turned, or two objects of different
+kinds swapped), keeping only messy scenes that are collision-free, inside the bounds and *rejected* by
+the scenario's check. Then, per method:
 
 - ``tidy (effort W)``: :func:`scenescore.tidy.tidy` at each effort weight;
 - ``re-place all``: every movable object placed from scratch by the sampler, no effort term;
@@ -376,9 +377,8 @@ def run_scenario(
     cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
     if not cases:
         raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
-    log(
-        f"{name} seed {seed}: trained in {time.perf_counter() - t0:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases"
-    )
+    took = time.perf_counter() - t0
+    log(f"{name} seed {seed}: trained in {took:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases")
     res.cases += cases
     messy = [c.messy for c in cases]
     for e in efforts:
