@@ -10,8 +10,9 @@ over five cluttered scenes, all of them repaired by ``alm``, both counted by the
 the SceneScore rows only. ``zoo``: one scenario and seed of ``scenescore experiment zoo`` (training on 48
 scenes, the 16 placements). ``tidy``: the README's ``scenescore tidy model.ckpt examples/messy_dining.json
 --out tidy.json --plot tidy.png`` after its import (``--model``: that checkpoint; default: trained first
-as the README does, 48 generated dining scenes and 150 iterations, outside the profile). Prints the wall time, the cumulative seconds of each phase (a phase is a
-function; phases nest, so the shares need not add up) and the ``--top`` functions by cumulative time.
+as the README does, 48 generated dining scenes and 150 iterations, outside the profile). Prints the wall
+time, the cumulative seconds of each phase (a phase is a function; phases nest, so the shares need not
+add up) and the ``--top`` functions by cumulative time.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ PHASES = {
 
 
 def readme_model(folder: Path) -> Path:
-    """The README's dining model: ``scenescore generate dining --n 48`` and ``scenescore train --iterations 150``."""
+    """The README's dining model: ``scenescore generate dining --n 48``, then ``scenescore train`` for 150
+    iterations."""
     from scenescore.cli import main
 
     data, model = folder / "data.jsonl", folder / "model.ckpt"
