@@ -12,6 +12,8 @@ a busy 2-core machine, 3 us with 1). Large batches pay for the pool, but only on
   :data:`POOL_ROWS` rows; from there the budget (given), else the budget capped by the cores that other
   processes leave free (measured from ``/proc/stat``, Linux; elsewhere the budget).
 - :func:`torch_threads` runs a block on ``n`` threads and restores the caller's setting.
+- :class:`Ahead` computes work ahead on a second core (one worker thread, one torch thread), where the
+  caller can guess what it will need before it knows.
 
 Nothing here changes torch's process-wide setting beyond the block that asked for it.
 """
@@ -20,8 +22,10 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Hashable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
+from typing import Any
 
 import torch
 
@@ -36,8 +40,11 @@ __all__ = [
     "torch_threads",
     "free_cores",
     "usable_cores",
+    "Ahead",
 ]
 
+#: cores left idle by other processes from which :meth:`Ahead.worth` starts a worker
+AHEAD_FREE = 1.5
 #: pose sets from which a batch's tensors are big enough to pay for torch's thread pool
 POOL_ROWS = 256
 MAX_THREADS = 1024  # more is a typo, not a plan
@@ -174,3 +181,63 @@ def free_cores() -> float | None:
     others = min(max((d_busy - d_own) / d_total, 0.0), 1.0)  # share of the CPUs' time others used
     _sample, _estimate = new, ncpu * (1.0 - others)
     return _estimate
+
+
+# ---- work computed ahead on a second core ------------------------------------------------------------
+
+
+class Ahead:
+    """Work computed ahead on a second core: each :meth:`submit` hands a keyed zero-argument callable to
+    one worker thread, which runs it on one torch thread while the caller goes on; :meth:`result` returns
+    a key's answer, waited for when the worker has started it, else computed in the caller's thread. A newer
+    submission cancels an older one that has not started (a guess the caller has moved past).
+
+    Torch's thread setting and MKL's are shared between threads, so the answers are those of calling the
+    work directly only when it and the caller's own work both run on one torch thread; the caller checks
+    that (:func:`threads_for` of each batch is 1) before it submits. Use it as a context manager: leaving
+    cancels what has not started and waits for what has.
+    """
+
+    def __init__(self) -> None:
+        self._pool = ThreadPoolExecutor(
+            1, "scenescore-ahead", initializer=torch.set_num_threads, initargs=(1,)
+        )
+        self._futures: dict[Hashable, Future[Any]] = {}
+
+    @staticmethod
+    def worth() -> bool:
+        """Whether a second core is there to use: a thread budget of 2 or more (not ``--threads 1``), two
+        usable cores, and :data:`AHEAD_FREE` of them left idle by other processes."""
+        if budget() < 2 or usable_cores() < 2:
+            return False
+        free = free_cores()
+        return free is None or free >= AHEAD_FREE
+
+    def submit(self, key: Hashable, work: Callable[[], Any]) -> None:
+        """Start ``work`` for ``key`` on the worker (once per key), cancelling the submissions still waiting."""
+        if key in self._futures:
+            return
+        for f in self._futures.values():
+            f.cancel()
+        self._futures[key] = self._pool.submit(work)
+
+    def result(self, key: Hashable, work: Callable[[], Any]) -> Any:
+        """``key``'s answer: the submitted work's once it has started (waited for; its exception raised
+        here), else ``work()`` here and now; every other submission still waiting is cancelled."""
+        for k, other in self._futures.items():
+            if k != key:
+                other.cancel()
+        f = self._futures.get(key)
+        if f is None or f.cancel():  # never submitted, or still waiting (behind a guess that was wrong)
+            return work()
+        return f.result()
+
+    def close(self) -> None:
+        """Cancel what has not started and wait for what has."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> Ahead:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

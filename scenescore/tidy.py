@@ -23,7 +23,9 @@ moving objects from where they are (:class:`~scenescore.costs.Displacement` and
    is undone when that lowers the cost; the moved objects are also placed again by the missing-object
    placement, and so is each set of them one smaller (the left-out object where it is); the candidate
    with the lowest whole cost is kept, and a last refinement (``osqp``) runs over its moved objects
-   alone, so every other object is exactly where it was.
+   alone, so every other object is exactly where it was. For one scene on a machine with a core to
+   spare, that placement of the set chosen so far starts on the second core while the selection goes
+   on (:func:`_placing_ahead`; the same answer to the bit).
 
 :func:`plan_moves` then orders the moves so that each target is free of every object still in place
 when the object is put down (the exact check), parking an object at a buffer pose where the moves
@@ -35,7 +37,8 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
@@ -54,6 +57,7 @@ from .scene import Scene, atomic_write_text, wrap_angle
 from .solvers import Result, Status, make_result, solve
 from .solvers.base import torch_threads
 from .solvers.langevin import LangevinOptions, LangevinSolver
+from .threads import POOL_ROWS, Ahead
 
 __all__ = [
     "EFFORT",
@@ -373,18 +377,82 @@ def tidy_many(
                 "where they are (fill unknown poses first with `scenescore place`)"
             )
     problems = [tidy_problem(model, s, effort, stay, weights, reach, o) for s in scenes]
+    tol = o.move_tol * model.config.length_scale  # metres
     # small tensors: one torch thread (restored after; the placement chains choose their own)
-    with torch_threads(1):
-        states = _select(model, scenes, problems, o, seed)
-        tol = o.move_tol * model.config.length_scale  # metres
-        pruned = [_prune(p, x, s.poses(), tol) for s, p, x in zip(scenes, problems, states)]
-        moved = [[n for n, d in zip(s.names, _moves(s, x)) if d > tol] for s, x in zip(scenes, pruned)]
-        placed = _placed(model, scenes, moved, seed) if o.place else [[] for _ in scenes]
+    with torch_threads(1), _placing_ahead(model, scenes, problems, o, seed, tol) as ahead:
+        states = _select(model, scenes, problems, o, seed, None if ahead is None else ahead[1])
+        pruned, moved = [], []
+        for p, x in zip(problems, states):
+            x, names = _pruned(p, x, tol)
+            pruned.append(x)
+            moved.append(names)
+        if not o.place:
+            placed: list[list[np.ndarray]] = [[] for _ in scenes]
+        elif ahead is not None:  # one scene
+            placed = [ahead[0].result(tuple(moved[0]), lambda: _placed(model, scenes, moved, seed)[0])]
+        else:
+            placed = _placed(model, scenes, moved, seed)
         out = []
         for s, p, x, m, alt in zip(scenes, problems, pruned, moved, placed):
             r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
             out.append(_finish(model, s, p, r0, m, alt, effort, seed, stay, weights, reach, o))
     return out
+
+
+def _pruned(problem: Problem, x: np.ndarray, tol: float) -> tuple[np.ndarray, list[str]]:
+    """The selection's poses ``x (N, 3)`` pruned (:func:`_prune`) and the objects that move in them."""
+    scene = problem.scene
+    x = _prune(problem, x, scene.poses(), tol)
+    return x, [n for n, d in zip(scene.names, _moves(scene, x)) if d > tol]
+
+
+def _blanks(scene: Scene, names: list[str]) -> list[Scene]:
+    """The scenes :func:`_placed` fills for the moved objects ``names``: ``scene`` with their poses
+    unknown, and, where two or more moved, with those of each set one smaller."""
+    sets = [names] if names else []
+    if len(names) > 1:
+        sets += [[m for m in names if m != n] for n in names]
+    out = []
+    for subset in sets:
+        b = scene.copy()
+        for n in subset:
+            b.objects[b.index(n)].pose = None
+        out.append(b)
+    return out
+
+
+@contextmanager
+def _placing_ahead(
+    model: ScoreModel, scenes: list[Scene], problems: list[Problem], o: TidyOptions, seed: int, tol: float
+) -> Iterator[tuple[Ahead, Callable[[int, np.ndarray], None]] | None]:
+    """For a single scene on a machine with a core to spare (:meth:`~scenescore.threads.Ahead.worth`):
+    an :class:`~scenescore.threads.Ahead` and the selection's callback that starts :func:`_placed` of
+    the set its poses so far move, on the second core while the selection goes on (its last rounds
+    usually confirm that set). The answers are the same to the bit as without it, which needs every
+    chain on one torch thread (fewer than :data:`~scenescore.threads.POOL_ROWS` particles): the
+    selection's batches (at most one set per movable object and :data:`SWAP_CANDIDATES` swaps, or the
+    pairs round) and each placement's. None otherwise (several scenes have their placements batched
+    together)."""
+    from .placement import PLACE
+
+    pairs = PAIR_CANDIDATES * (PAIR_CANDIDATES - 1) // 2
+    if (
+        len(scenes) != 1
+        or not o.place
+        or o.propose.threads not in (None, 1)
+        or o.propose.particles * max(len(problems[0].movable) + SWAP_CANDIDATES, pairs) >= POOL_ROWS
+        or not Ahead.worth()
+    ):
+        yield None
+        return
+
+    def submit(k: int, x: np.ndarray) -> None:
+        names = _pruned(problems[k], x, tol)[1]
+        if names and PLACE.particles * len(_blanks(scenes[k], names)) < POOL_ROWS:
+            ahead.submit(tuple(names), lambda: _placed(model, scenes, [names], seed)[0])
+
+    with Ahead() as ahead:
+        yield ahead, submit
 
 
 def _placed(
@@ -399,13 +467,7 @@ def _placed(
 
     blanks, idx = [], []
     for k, (s, names) in enumerate(zip(scenes, moved)):
-        sets = [names] if names else []
-        if len(names) > 1:
-            sets += [[m for m in names if m != n] for n in names]
-        for subset in sets:
-            b = s.copy()
-            for n in subset:
-                b.objects[b.index(n)].pose = None
+        for b in _blanks(s, names):
             blanks.append(b)
             idx.append(k)
     out: list[list[np.ndarray]] = [[] for _ in scenes]
@@ -415,7 +477,12 @@ def _placed(
 
 
 def _select(
-    model: ScoreModel, scenes: list[Scene], problems: list[Problem], o: TidyOptions, seed: int
+    model: ScoreModel,
+    scenes: list[Scene],
+    problems: list[Problem],
+    o: TidyOptions,
+    seed: int,
+    on_change: Callable[[int, np.ndarray], None] | None = None,
 ) -> list[np.ndarray]:
     """Which objects to move, per scene, by forward selection with a backward check: each step re-places
     the chosen set with one more movable object (the others where they are) and keeps the set whose
@@ -426,7 +493,7 @@ def _select(
     where the other belongs: neither move pays alone); it stops when that fails too. Each step also
     tries the chosen set with the :data:`SWAP_CANDIDATES` pairs whose exchange lowers the cost most
     (:func:`_swaps`), so that two objects in each other's places are found even where a false single
-    move pays first.
+    move pays first. ``on_change(k, poses)`` is called whenever scene ``k``'s poses change.
     Returns each scene's poses ``(N, 3)``."""
     states = [s.poses() for s in scenes]
     chosen: list[list[str]] = [[] for _ in scenes]
@@ -462,6 +529,9 @@ def _select(
                     best[k], states[k], chosen[k] = found[k]
                     still.append(k)
         active = sorted(still)
+        if on_change is not None:
+            for k in active:
+                on_change(k, states[k])
     return states
 
 

@@ -96,3 +96,38 @@ def test_train_and_place_leave_torchs_setting_alone():
         place(model, scenes[0].without("fork_0"), LangevinOptions(particles=4, chain=SHORT), seed=0)
         assert torch.get_num_threads() == 1
     assert torch.get_num_threads() == 2
+
+
+def test_ahead_answers_a_submitted_key_from_its_worker_and_any_other_here():
+    import threading
+
+    main = threading.current_thread()
+    ran: list[tuple[str, bool]] = []
+
+    def work(key: str):
+        def run() -> str:
+            ran.append((key, threading.current_thread() is main))
+            return key * 2
+
+        return run
+
+    gate = threading.Event()
+    with th.Ahead() as ahead:
+        ahead.submit("a", lambda: gate.wait(5) and work("a")())
+        ahead.submit("b", work("b"))  # waits behind a
+        ahead.submit("c", work("c"))  # cancels b, which has not started
+        ahead.submit("c", work("never"))  # once per key
+        gate.set()
+        assert ahead.result("a", work("a-here")) == "aa"  # started: its worker's answer
+        assert ahead.result("d", work("d")) == "dd"  # never submitted: computed here; c cancelled
+    assert ("a", False) in ran and ("d", True) in ran
+    assert not any(k in ("b", "c", "never") for k, _ in ran)
+
+
+def test_ahead_raises_the_workers_error_and_is_not_worth_it_on_one_thread():
+    with th.Ahead() as ahead:
+        ahead.submit("x", lambda: 1 / 0)
+        with pytest.raises(ZeroDivisionError):
+            ahead.result("x", lambda: 0)  # a failure is not hidden by computing again
+    with ss.thread_budget(1):
+        assert not th.Ahead.worth()  # --threads 1: no second core

@@ -431,3 +431,44 @@ def test_the_placement_candidates_leave_each_moved_object_out_in_turn():
     assert np.array_equal(one[0][1], now[1])  # blue, not in the set, stays exactly
     # the whole set placed, then the set with red left where it is, then with blue left where it is
     assert np.array_equal(two[1][0], now[0]) and np.array_equal(two[2][1], now[1])
+
+
+def test_placing_ahead_on_a_second_core_gives_the_same_answer_to_the_bit(monkeypatch):
+    import threading
+
+    from scenescore.threads import Ahead
+
+    T = importlib.import_module("scenescore.tidy")
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    scene = Scene(
+        [
+            SceneObject(f"o{k}", ("cup", "box")[k % 2], (0.1, 0.1), (0.15 * k - 0.3, 0.05 * k, 0.3 * k))
+            for k in range(3)
+        ],
+        bounds=((-0.6, -0.6), (0.6, 0.6)),
+    )
+    o = replace(_quick(), count=0.0)  # moving is free: the selection moves objects, so there is work ahead
+    used: list[tuple[list[str], bool, list[np.ndarray]]] = []
+    placed = T._placed
+
+    def spy(model, scenes, moved, seed):
+        out = placed(model, scenes, moved, seed)
+        used.append((moved[0], threading.current_thread() is threading.main_thread(), out[0]))
+        return out
+
+    def patient(self, key, work):  # the worker's answer wherever the key is still to run there
+        f = self._futures.get(key)
+        return work() if f is None or f.cancelled() else f.result()
+
+    monkeypatch.setattr(T, "_placed", spy)
+    serial = tidy(model, scene, effort=0.2, seed=3, options=o).to_dict()
+    assert serial["moved"] and used == [(serial["moved"], True, used[0][2])]
+    monkeypatch.setattr(Ahead, "worth", staticmethod(lambda: True))
+    monkeypatch.setattr(Ahead, "result", patient)
+    ahead = tidy(model, scene, effort=0.2, seed=3, options=o).to_dict()
+    names, main, poses = used[-1]
+    assert names == serial["moved"] and not main  # the worker placed the moved set
+    assert len(poses) == len(used[0][2]) and all(np.array_equal(a, b) for a, b in zip(poses, used[0][2]))
+    assert json.dumps(ahead, sort_keys=True) == json.dumps(serial, sort_keys=True)
+    assert torch.get_num_threads() == 1  # the caller's setting is left alone
