@@ -15,6 +15,8 @@ first as the README does, 48 generated dining scenes and 150 iterations) is not 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import statistics
 import subprocess
 import sys
@@ -32,8 +34,9 @@ def readme_model(folder: Path) -> Path:
     from scenescore.cli import main
 
     data, model = folder / "data.jsonl", folder / "model.ckpt"
-    assert main(["generate", "dining", "--n", "48", "--out", str(data), "--quiet"]) == 0
-    assert main(["train", str(data), "--out", str(model), "--iterations", "150", "--quiet"]) == 0
+    with contextlib.redirect_stdout(io.StringIO()):  # the table is what this prints
+        assert main(["generate", "dining", "--n", "48", "--out", str(data), "--quiet"]) == 0
+        assert main(["train", str(data), "--out", str(model), "--iterations", "150", "--quiet"]) == 0
     return model
 
 
