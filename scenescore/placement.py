@@ -62,15 +62,10 @@ def covering(options: LangevinOptions, model: ScoreModel, scenes: list[Scene]) -
     (options given by hand are used as given); ``candidates=0`` (no screening) stays."""
     if options.candidates == 0:
         return options
-    need = min(math.ceil(density_draws(model, scenes) / 1024) * 1024, MAX_COVERING)
-    return options if need <= options.candidates else replace(options, candidates=need)
-
-
-def density_draws(model: ScoreModel, scenes: list[Scene]) -> int:
-    """:data:`CANDIDATE_DENSITY` draws per square length scale of the largest bounds of ``scenes`` (at most
-    :data:`MAX_COVERING`): the fewest that cover them as densely as placement's screening does."""
     area = max((s.bounds[1][0] - s.bounds[0][0]) * (s.bounds[1][1] - s.bounds[0][1]) for s in scenes)
-    return min(math.ceil(CANDIDATE_DENSITY * area / model.config.length_scale**2), MAX_COVERING)
+    need = math.ceil(CANDIDATE_DENSITY * area / model.config.length_scale**2 / 1024) * 1024
+    need = min(need, MAX_COVERING)
+    return options if need <= options.candidates else replace(options, candidates=need)
 
 
 def non_overlap(model: ScoreModel, scene: Scene, names: list[str] | None = None) -> HingeCollision | None:

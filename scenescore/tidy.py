@@ -6,9 +6,8 @@ moving objects from where they are (:class:`~scenescore.costs.Displacement` and
 
 1. *Selection*: a forward selection of the objects to move, with a backward check. Each step re-places
    the objects chosen so far together with one more movable object (placed by the learned energy with
-   the others where they are; draws as dense in the bounds as placement's screening, at least 256
-   (:func:`~scenescore.placement.density_draws`), half of them proposed beside the objects that stay
-   as the data has them; half keep the chosen objects where the last step
+   the others where they are; as many draws as placement screens for the bounds, half of them proposed
+   beside the objects that stay as the data has them; half keep the chosen objects where the last step
    put them, an eighth start near where the set's objects are, a quarter put two of the set in each
    other's places; every candidate set of every scene in one batched chain per size; the exact
    exchanges of two of the set are candidates too) and keeps the set whose best placement lowers the
@@ -575,7 +574,7 @@ def _replacements(
     per size), its poses ``(N, 3)`` and that set. ``warm``: each scene's poses so far; half the draws
     keep the objects of the set that those poses moved where they put them. ``every``, when given, is
     filled with each scene's ``(lowest cost, set)`` of every set."""
-    from .placement import density_draws, placement_problem
+    from .placement import covering, placement_problem
 
     flat = [(k, names) for k, sets in jobs.items() for names in sets if names]
     blanks, starts = [], []
@@ -587,10 +586,9 @@ def _replacements(
             blank.objects[blank.index(m)].pose = None
         # the fused network alone; the whole cost judges overlap below
         p = placement_problem(model, blank, energy_only=True)
-        # the candidates, or as many draws as cover these bounds as densely as placement screens them
-        # (small objects in large bounds need more); a share of them proposed beside the objects that
-        # stay, as the data has them, the rest uniform
-        draws = max(o.propose.candidates, density_draws(model, [scenes[k]]), keep)
+        # as many draws as placement screens for these bounds (small objects in large bounds need more);
+        # a share of them proposed beside the objects that stay, as the data has them, the rest uniform
+        draws = max(covering(o.propose, model, [scenes[k]]).candidates, keep)
         x = p.initial(draws, gen, proposals=o.propose.proposals)  # (draws, N, 3): the others where they are
         rows = [scenes[k].index(m) for m in names]
         if warm is not None:
