@@ -24,20 +24,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from profile_experiment import readme_model  # this folder's script: the README's model, trained as it says
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "messy_dining.json"
-
-
-def readme_model(folder: Path) -> Path:
-    """The README's dining model: ``scenescore generate dining --n 48``, then ``scenescore train`` for 150
-    iterations."""
-    from scenescore.cli import main
-
-    data, model = folder / "data.jsonl", folder / "model.ckpt"
-    with contextlib.redirect_stdout(io.StringIO()):  # the table is what this prints
-        assert main(["generate", "dining", "--n", "48", "--out", str(data), "--quiet"]) == 0
-        assert main(["train", str(data), "--out", str(model), "--iterations", "150", "--quiet"]) == 0
-    return model
 
 
 def timed(model: Path, folder: Path, extra: list[str]) -> tuple[float, bytes]:
@@ -63,7 +53,11 @@ def main() -> None:
         raise SystemExit(f"bench_tidy: --runs: expected at least 1, got {args.runs}")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        model = args.model.resolve() if args.model else readme_model(folder)
+        if args.model:
+            model = args.model.resolve()
+        else:
+            with contextlib.redirect_stdout(io.StringIO()):  # the table is what this prints
+                model = readme_model(folder)
         timed(model, folder, [])  # warm-up: the file cache, not counted
         walls: dict[str, list[float]] = {"default": [], "--threads 1": []}
         outputs = set()

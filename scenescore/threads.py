@@ -194,7 +194,7 @@ class Ahead:
 
     Torch's thread setting and MKL's are shared between threads, so the answers are those of calling the
     work directly only when it and the caller's own work both run on one torch thread; the caller checks
-    that (:func:`threads_for` of each batch is 1) before it submits. Use it as a context manager: leaving
+    that (every batch below :data:`POOL_ROWS` rows, where :func:`threads_for` gives one) before it submits. Use it as a context manager: leaving
     cancels what has not started and waits for what has.
     """
 
