@@ -13,6 +13,8 @@ from scenescore.exact import collides, fcl_signed_distance, shapely_core
 from scenescore.geometry import Footprints, compose_poses, footprint_core, relative_poses, signed_distance
 from scenescore.scene import Scene, SceneObject
 
+pytestmark = pytest.mark.float_order
+
 
 def _random_object(rng: np.random.Generator, name: str) -> SceneObject:
     kind = rng.choice(["box", "disk", "polygon", "ellipse"])

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, replace
 
 import numpy as np
+import pytest
 import torch
 
 import scenescore as ss
@@ -13,6 +14,8 @@ from scenescore.models import ScoreModel
 from scenescore.models.trust import overlapping_categories, reference
 from scenescore.placement import PLACE, non_overlap, overlapping, place, place_many, placement_problem
 from scenescore.solvers.langevin import LangevinSolver
+
+pytestmark = pytest.mark.float_order
 
 SMALL = replace(PLACE, particles=16, candidates=128, chain=replace(PLACE.chain, steps=10, final_descent=5))
 

@@ -7,14 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from scenescore.cli import UserError
 from scenescore.cli import problems as cli_problems
 from scenescore.problem import ProblemError
 from scenescore.problem_file import load_problem
-
-torch.set_num_threads(1)
 
 SCENE = {
     "objects": [

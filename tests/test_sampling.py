@@ -16,7 +16,7 @@ from scenescore.sampling import PLACEMENT, LangevinConfig, langevin, resample, s
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import solve
 
-torch.set_num_threads(1)
+pytestmark = pytest.mark.float_order
 
 
 def _pull(poses: torch.Tensor) -> torch.Tensor:

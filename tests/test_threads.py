@@ -14,6 +14,8 @@ from scenescore.sampling import PLACEMENT
 from scenescore.solvers.langevin import LangevinOptions
 from scenescore.training import TrainConfig, train
 
+pytestmark = pytest.mark.own_threads
+
 SHORT = replace(PLACEMENT, steps=3, final_descent=1)
 
 

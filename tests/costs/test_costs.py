@@ -20,8 +20,6 @@ from scenescore.costs import (
 )
 from scenescore.scene import Scene, SceneObject
 
-torch.set_num_threads(1)  # tiny tensors: a thread pool only adds overhead
-
 
 def _scene() -> Scene:
     return Scene(

@@ -15,8 +15,6 @@ from scenescore.problem import Problem, ProblemError
 from scenescore.problem_file import load_problem
 from scenescore.scene import Scene, SceneObject
 
-torch.set_num_threads(1)
-
 
 def _scene() -> Scene:
     return Scene(

@@ -4,16 +4,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import torch
-
 from scenescore.experiments import tidy as T
 from scenescore.sampling import PLACEMENT
 from scenescore.scenarios import get
 from scenescore.solvers.langevin import LangevinOptions
 from scenescore.tidy import TidyOptions
 from scenescore.training import TrainConfig
-
-torch.set_num_threads(1)
 
 
 def test_messy_cases_are_feasible_and_rejected_by_the_check():

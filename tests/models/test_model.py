@@ -9,6 +9,8 @@ from scenescore.encoders import FootprintEncoder
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.scenarios import DiningScenario
 
+pytestmark = pytest.mark.float_order
+
 
 def _model(**kw):
     torch.manual_seed(0)

@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from conftest import rounding_tolerance
 
 import scenescore as ss
 from scenescore.models.trust import TrustReference, assess, energy_shares
@@ -128,10 +129,16 @@ def test_an_objects_share_is_the_energy_it_adds_to_its_scene(dining):
             return float(model.energy(st.poses, st)[0])
 
     want = [energy(s) - energy(replace(s, objects=[o for o in s.objects if o.name != n])) for n in s.names]
-    assert energy_shares(model, s).tolist() == pytest.approx(want, abs=1e-5)  # float32, padded batch
-    assert energy_shares(model, s, [s.names[1]]).tolist() == pytest.approx(want[1:2], abs=1e-5)
+    # float32 in a padded batch against one scene at a time: equal to the rounding of the network's sums,
+    # at the scale of the scene's energy (a share is a difference of two energies)
+    scale = torch.tensor([energy(s)], dtype=torch.float64)
+    tol = rounding_tolerance(
+        scale, model.net.cfg.layers * (len(s) + 4 + 2 * model.net.cfg.hidden), torch.float32
+    )
+    assert energy_shares(model, s).tolist() == pytest.approx(want, abs=tol)
+    assert energy_shares(model, s, [s.names[1]]).tolist() == pytest.approx(want[1:2], abs=tol)
     lone = replace(s, objects=s.objects[:1])
-    assert energy_shares(model, lone).tolist() == pytest.approx([energy(lone)], abs=1e-5)
+    assert energy_shares(model, lone).tolist() == pytest.approx([energy(lone)], abs=tol)
     ref = model.trust
     counts = {c: sum(o.category == c for t in te for o in t.objects) for c in ref.shares}
     assert {c: len(v) for c, v in ref.shares.items()} == counts

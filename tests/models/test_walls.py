@@ -13,6 +13,8 @@ from scenescore.models.batching import wall_objects
 from scenescore.models.network import WALLS, edge_features, wall_nodes
 from scenescore.training import TrainConfig, stands_against_walls, train
 
+pytestmark = pytest.mark.float_order
+
 
 def _model(walls: bool) -> ss.models.ScoreModel:
     torch.manual_seed(0)

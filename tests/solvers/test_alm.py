@@ -16,7 +16,8 @@ from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import available, get, option_names, solve
 from scenescore.solvers.alm import ALMOptions, ALMSolver
 
-torch.set_num_threads(1)  # tiny tensors: a thread pool only adds overhead
+pytestmark = pytest.mark.float_order
+
 
 FAST_LANGEVIN = {"particles": 16, "steps": 30, "noise": 0.2, "step_init": 0.02, "step_final": 0.002}
 STATUSES = {"converged", "max_iterations", "infeasible", "failed"}

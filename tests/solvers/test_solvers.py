@@ -13,7 +13,8 @@ from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import available, get, solve
 from scenescore.solvers.projection import LinearisedProjection, project_cvxpy
 
-torch.set_num_threads(1)  # tiny tensors: a thread pool only adds overhead
+pytestmark = pytest.mark.float_order
+
 
 OPTIMUM = np.array([0.15 + 0.01 + 0.05, 0.05])  # box face + margin + mug radius; y of the target
 FAST_LANGEVIN = {
