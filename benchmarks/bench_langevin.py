@@ -11,15 +11,16 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import asdict
 
 import torch
 
 from scenescore.devices import generator, resolve_device
 from scenescore.encoders import FootprintEncoder
+from scenescore.learn import TrainConfig, train
 from scenescore.models import ScoreModel
 from scenescore.sampling import LangevinConfig, langevin, uniform_init
 from scenescore.scenarios import DiningScenario
-from scenescore.training import TrainConfig, train
 
 
 def throughput(model: ScoreModel, n: int, b: int, steps: int = 20) -> float:
@@ -56,7 +57,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
     cfg = TrainConfig(iterations=args.train_iterations)
-    model = ScoreModel.create(FootprintEncoder(), **cfg.model).to(device)
+    model = ScoreModel.create(FootprintEncoder(), **asdict(cfg.network)).to(device)
     c = model.config
     where = torch.cuda.get_device_name(device) if device.type == "cuda" else f"{args.threads} CPU thread(s)"
     print(
@@ -79,7 +80,7 @@ def main() -> None:
         f"\ntraining: {len(train_s)} dining scenes (8 objects), {cfg.iterations} iterations, "
         f"{cfg.batch_scenes} scenes x {cfg.negatives} chains x {cfg.chain_steps} steps per iteration: "
         f"{dt:.1f} s ({1000 * dt / cfg.iterations:.0f} ms/iteration), final InfoNCE loss "
-        f"{m.info['final_loss']:.3f} (chance {m.info['chance_loss']:.3f})"
+        f"{m.info.final_loss:.3f} (chance {m.info.chance_loss:.3f})"
     )
 
 

@@ -21,10 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from scenescore.learn import TrainConfig, train
 from scenescore.scenarios import DiningScenario
 from scenescore.scenarios.dining import CATALOGUE
 from scenescore.scene import Scene, SceneObject
-from scenescore.training import TrainConfig, train
 
 CELL = 0.5  # m, one place setting per cell
 # (category, offset in the cell, heading): disjoint footprints, all inside the cell

@@ -29,9 +29,9 @@ from contextlib import contextmanager
 import torch
 
 import scenescore as ss
+from scenescore.learn import TrainConfig, train
 from scenescore.placement import place, place_many
 from scenescore.threads import free_cores
-from scenescore.training import TrainConfig, train
 
 # a CPU-bound process that stops by itself when the benchmark is gone (even if it was killed)
 SPIN = "import os, sys\nparent = int(sys.argv[1])\nwhile os.getppid() == parent:\n    sum(range(200_000))\n"

@@ -16,8 +16,8 @@ import time
 
 import torch
 
+from scenescore.learn import TrainConfig, train
 from scenescore.scenarios import get
-from scenescore.training import TrainConfig, train
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> None:
                 scenes, TrainConfig(iterations=args.iterations, group_sizes=grouped), seed=0, progress=False
             )
             times[grouped].append(time.perf_counter() - t)
-            loss[grouped] = m.info["final_loss"]
+            loss[grouped] = m.info.final_loss
     print(
         f"{args.scenario}: {len(scenes)} scenes of {counts[0]} to {counts[-1]} objects, {args.iterations} "
         f"iterations, {args.repeats} runs each, {args.threads} thread(s)\n"

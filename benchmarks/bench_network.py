@@ -23,10 +23,10 @@ import time
 import torch
 from torch import Tensor
 
-from scenescore.models.network import EnergyConfig, EnergyNet, _MessageLayer
+from scenescore.models.network import EnergyConfig, EnergyNet, MessageLayer
 
 
-def unfolded(layer: _MessageLayer, v: Tensor, e: Tensor | None, pair: Tensor) -> Tensor:
+def unfolded(layer: MessageLayer, v: Tensor, e: Tensor | None, pair: Tensor) -> Tensor:
     """The layer with f's last linear applied to every edge before the masked sum (the old form)."""
     m = layer.w_i(v)[:, :, None, :] + layer.w_j(v)[:, None, :, :]
     if layer.w_e is not None and e is not None:
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> None:
     torch.set_num_threads(1)
     torch.manual_seed(0)
     net = EnergyNet(EnergyConfig(feat_dim=7))
-    folded = _MessageLayer.forward
+    folded = MessageLayer.forward
     print("| objects | summed, then linear (s) | linear per edge (s) | ratio |\n|---:|---:|---:|---:|")
     for n in (12, 28):
         x, f, sz = (
@@ -90,11 +90,11 @@ def main(argv: list[str] | None = None) -> None:
         )
         new, old = [], []
         for _ in range(2):  # interleaved, so that load on the machine falls on both
-            _MessageLayer.forward = folded  # type: ignore[method-assign]
+            MessageLayer.forward = folded  # type: ignore[method-assign]
             new.append(seconds(net, x, f, sz, args.repeat))
-            _MessageLayer.forward = unfolded  # type: ignore[method-assign,assignment]
+            MessageLayer.forward = unfolded  # type: ignore[method-assign,assignment]
             old.append(seconds(net, x, f, sz, args.repeat))
-        _MessageLayer.forward = folded  # type: ignore[method-assign]
+        MessageLayer.forward = folded  # type: ignore[method-assign]
         print(f"| {n} | {min(new):.3f} | {min(old):.3f} | {min(old) / min(new):.2f}x |")
     pieces_table(net, args.population, max(args.repeat // 2, 1))
 

@@ -25,7 +25,8 @@ from shapely.geometry import Polygon
 
 import scenescore as ss
 from scenescore.scene import Scene, SceneObject
-from scenescore.vision import DEFAULT_LOOKS, DEFAULT_PPM, graphs_from_renders
+from scenescore.vision import DEFAULT_LOOKS, DEFAULT_PPM
+from scenescore.vision.graph import graphs_from_renders
 
 
 def sprite_scenes(n: int, seed: int) -> list[Scene]:

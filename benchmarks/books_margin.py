@@ -20,10 +20,10 @@ import time
 import numpy as np
 import torch
 
+from scenescore.learn import TrainConfig, train
 from scenescore.models.trust import energy_per_object
 from scenescore.scenarios import get
 from scenescore.scene import Scene
-from scenescore.training import TrainConfig, train
 
 
 def far_end(scene: Scene, gap: float) -> list[Scene]:

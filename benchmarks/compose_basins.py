@@ -36,12 +36,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from scenescore.experiments.compose import REFINE, _correct, langevin_options, train_config, tv_problem
+from scenescore.experiments.compose import REFINE, correct_samples, langevin_options, train_config, tv_problem
+from scenescore.learn import TrainConfig, train
 from scenescore.models import ScoreModel, load
 from scenescore.scenarios.tv import TVScenario
 from scenescore.scene import Scene
 from scenescore.solvers import get, solve
-from scenescore.training import TrainConfig, train
 
 
 def energy(seed: int, changes: dict[str, Any], model_dir: Path | None) -> ScoreModel:
@@ -127,7 +127,7 @@ def main() -> None:
                     assert rep is not None and ref is not None and pol is not None
                     asym.extend(asymmetry(scene, np.asarray(lan.samples)))
                     for key, poses in (("lan", lan.samples), ("rep", rep), ("ref", ref), ("pol", pol)):
-                        c, d = _correct(scenario, scene, np.asarray(poses))
+                        c, d = correct_samples(scenario, scene, np.asarray(poses))
                         cells[key][0] += c
                         cells[key][1] += d
                     ok = scenario.correct_many(scene, np.asarray(rep))

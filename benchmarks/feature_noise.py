@@ -21,9 +21,9 @@ import numpy as np
 import torch
 
 from scenescore.evaluation import make_cases
+from scenescore.learn import TrainConfig
 from scenescore.placement import SceneScorePlacer
 from scenescore.scenarios import DiningScenario, OrderingScenario
-from scenescore.training import TrainConfig
 
 
 def error_cm(scenario, train_s, test_s, noise: float, seed: int, **config) -> float:

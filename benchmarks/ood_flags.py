@@ -23,8 +23,8 @@ import torch
 
 import scenescore as ss
 from scenescore.experiments.zoo import place_back, zoo_cases
+from scenescore.learn import TrainConfig, split_validation, train
 from scenescore.placement import place_many
-from scenescore.training import TrainConfig, split_validation, train
 
 
 def main(argv: list[str] | None = None) -> None:

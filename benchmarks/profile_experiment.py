@@ -28,7 +28,7 @@ import torch
 
 # phase -> (file suffix, function name) whose cumulative time is the phase's
 PHASES = {
-    "training (scenescore.training._train)": ("scenescore/training.py", "_train"),
+    "training (scenescore.learn.loop.fit)": ("scenescore/learn/loop.py", "fit"),
     "Langevin chains (sampling.langevin: training's counter-examples and the sampler)": (
         "scenescore/sampling.py",
         "langevin",
@@ -37,14 +37,26 @@ PHASES = {
     "placement (placement.place_many)": ("scenescore/placement.py", "place_many"),
     "exact checks (Problem.check)": ("scenescore/problem.py", "check"),
     "batched repair (alm)": ("scenescore/solvers/alm.py", "_solve"),
-    "tidy: choosing the objects to move (tidy._select)": ("scenescore/tidy.py", "_select"),
-    "tidy: its rounds of re-placing sets (tidy._replacements)": ("scenescore/tidy.py", "_replacements"),
+    "tidy: choosing the objects to move (tidying.selection.select_moves)": (
+        "scenescore/tidying/selection.py",
+        "select_moves",
+    ),
+    "tidy: its rounds of re-placing sets (tidying.selection.best_replacements)": (
+        "scenescore/tidying/selection.py",
+        "best_replacements",
+    ),
     "screening draws (sampling.screen: the selection's and the placement's)": (
         "scenescore/sampling.py",
         "screen",
     ),
-    "tidy: placing the moved objects again (tidy._placed)": ("scenescore/tidy.py", "_placed"),
-    "tidy: refining and planning (tidy._finish)": ("scenescore/tidy.py", "_finish"),
+    "tidy: placing the moved objects again (tidying.pruning.place_again)": (
+        "scenescore/tidying/pruning.py",
+        "place_again",
+    ),
+    "tidy: refining and planning (tidying.pruning.refine_and_plan)": (
+        "scenescore/tidying/pruning.py",
+        "refine_and_plan",
+    ),
 }
 
 

@@ -24,10 +24,10 @@ from dataclasses import replace
 from pathlib import Path
 
 from scenescore.experiments.zoo import run
+from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.placement import PLACE
 from scenescore.scenarios.zoo import ZOO
 from scenescore.scene import atomic_write_text
-from scenescore.training import VALIDATION_FRACTION, TrainConfig
 
 
 def main() -> None:

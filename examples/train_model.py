@@ -14,7 +14,7 @@ from pathlib import Path
 import torch
 
 import scenescore as ss
-from scenescore.training import TrainConfig, train
+from scenescore.learn import NetworkConfig, TrainConfig, train
 
 
 def main(argv: list[str] | None = None) -> Path:
@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> Path:
     t = time.perf_counter()
     model = train(
         scenes,
-        TrainConfig(iterations=args.iterations, model={"hidden": 32, "layers": 2}),
+        TrainConfig(iterations=args.iterations, network=NetworkConfig(hidden=32, layers=2)),
         progress=not args.quiet,
         seed=args.seed,
     )

@@ -1,7 +1,7 @@
 """Devices: where a model's weights, a problem's tensors and their random numbers live.
 
 Everything runs on the CPU unless asked otherwise. A model's device (:func:`scenescore.models.load`
-with ``device=``, :func:`scenescore.training.train` with ``device=``, or ``model.to(device)``) drives
+with ``device=``, :func:`scenescore.learn.train` with ``device=``, or ``model.to(device)``) drives
 the problems built on it: :class:`~scenescore.problem.Problem` puts its tensors, its bound costs and its
 solvers' particles on the device of the learned energy it holds (or the ``device`` it is given).
 

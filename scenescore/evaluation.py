@@ -191,8 +191,8 @@ def evaluate(
     held-out InfoNCE loss. Deterministic in ``seed``: ``scenescore train`` and ``scenescore evaluate``
     print the same figures for the same scenes."""
     from .baselines import NearestNeighbour
+    from .learn import heldout_loss
     from .placement import SceneScorePlacer
-    from .training import heldout_loss
 
     cases = leave_one_out(scenes, objects)
     if not cases:

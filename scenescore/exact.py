@@ -1,7 +1,11 @@
-"""Exact geometry references: shapely (flags, distances) and python-fcl (signed distance and penetration depth).
+"""Exact footprint geometry in numpy and shapely: placed cores, extents, overlap; python-fcl signed distance.
 
-Footprints are the same sphere-swept convex cores as in :mod:`scenescore.costs.geometry`: a disk is
+Footprints are the same sphere-swept convex cores as in :mod:`scenescore.geometry`: a disk is
 its centre grown by its radius (exact circles, not polygons), a box its rectangle, a polygon its hull.
+The extents (:func:`footprint_extent` at one pose, :func:`footprint_extents` at many) and the overlap
+tests (:func:`collides` at a penetration tolerance, :func:`footprints_overlap` with touching not
+counted) are the one numpy/shapely form that the scenarios, the trust checks, tidying and the costs'
+exact checks call; :mod:`scenescore.geometry` holds the batched torch form the costs differentiate.
 fcl sees footprints as prisms far taller than they are wide, so its depth is the footprint's depth.
 """
 
@@ -20,8 +24,11 @@ from .scene import SceneObject
 __all__ = [
     "placed_core",
     "shapely_core",
+    "footprint_extent",
+    "footprint_extents",
     "overlap_depth_exceeds",
     "collides",
+    "footprints_overlap",
     "fcl_signed_distance",
     "fcl_object",
     "PRISM_HEIGHT",
@@ -48,6 +55,27 @@ def shapely_core(obj: SceneObject, pose: Sequence[float]):
     return (Point(pts[0]) if len(pts) == 1 else Polygon(pts)), r
 
 
+def footprint_extent(obj: SceneObject, pose: Sequence[float]) -> tuple[float, float, float, float]:
+    """``(xmin, ymin, xmax, ymax)`` of ``obj``'s footprint at ``pose``: its placed core's vertices grown by
+    the radius (exact for boxes, round disks and polygons)."""
+    pts, r = placed_core(obj, pose)
+    return (
+        float(pts[:, 0].min() - r),
+        float(pts[:, 1].min() - r),
+        float(pts[:, 0].max() + r),
+        float(pts[:, 1].max() + r),
+    )
+
+
+def footprint_extents(obj: SceneObject, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The axis-aligned extent ``lo, hi (B, 2)`` of ``obj``'s footprint at each pose of ``poses (B, 3)``."""
+    core, r = footprint_core(obj)
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    rot = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)  # (B, 2, 2): row-vector rotation
+    pts = core[None] @ rot + poses[:, None, :2]  # (B, K, 2)
+    return pts.min(1) - r, pts.max(1) + r
+
+
 def collides(
     a: SceneObject, pa: Sequence[float], b: SceneObject, pb: Sequence[float], tol: float = 0.0
 ) -> bool:
@@ -67,6 +95,15 @@ def overlap_depth_exceeds(ga, gb, tol: float) -> bool:
             return False
     inter = shapely.intersection(ca, cb)
     return bool(inter.area > 0.0)
+
+
+def footprints_overlap(a: SceneObject, pa: Sequence[float], b: SceneObject, pb: Sequence[float]) -> bool:
+    """Whether the footprints overlap, touching not counted: disks closer than their radii less 1e-12 m,
+    polygons sharing more than 1e-14 m^2 (so that rounding at a designed contact is not an overlap)."""
+    (ca, ra), (cb, rb) = shapely_core(a, pa), shapely_core(b, pb)
+    if ra + rb > 0:
+        return bool(ca.distance(cb) < ra + rb - 1e-12)
+    return bool(shapely.intersection(ca, cb).area > 1e-14)
 
 
 def fcl_object(obj: SceneObject, pose: Sequence[float]):

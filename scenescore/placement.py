@@ -10,6 +10,7 @@ large batches.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, replace
 from typing import Protocol, cast
 
@@ -17,14 +18,14 @@ from tqdm.auto import tqdm
 
 from .costs import Cost, HingeCollision, LearnedEnergy
 from .encoders import Encoder
+from .learn import TrainConfig, train
 from .models import ScoreModel
-from .problem import Problem
+from .problem import FEASIBILITY_TOL, Problem
 from .sampling import PLACEMENT
 from .scene import Scene, SceneError
 from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
 from .threads import torch_threads
-from .training import TrainConfig, train
 
 __all__ = [
     "PLACE",
@@ -89,8 +90,6 @@ def overlapping(model: ScoreModel, scene: Scene, names: list[str]) -> list[tuple
     hinge = non_overlap(model, scene, names)
     if hinge is None:
         return []
-    from .problem import FEASIBILITY_TOL
-
     term = cast(HingeCollision, hinge.bind(scene, names))
     all_names = scene.names
     by_label = {lab: (all_names[i], all_names[j]) for lab, (i, j) in zip(term.labels(), term.support())}
@@ -190,6 +189,7 @@ class SceneScorePlacer:
     progress: bool = False
     model: ScoreModel | None = None
     device: str | None = None  # where the model trains and places (default the CPU)
+    cache: str | os.PathLike | None = None  # a model cache folder (see scenescore.learn.cache)
 
     def fit(self, scenes: list[Scene], seed: int = 0) -> SceneScorePlacer:
         self.model = train(
@@ -199,6 +199,7 @@ class SceneScorePlacer:
             seed=seed,
             progress=self.progress,
             device=self.device,
+            cache=self.cache,
         )
         return self
 

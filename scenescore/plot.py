@@ -252,7 +252,7 @@ def draw_moves(ax, before: Scene, steps: Sequence[Any]) -> list[str]:
 def plot_tidy(
     result: Any, path: str | os.PathLike, reach: Sequence[tuple[tuple[float, float], float]] = ()
 ) -> None:
-    """A :class:`~scenescore.tidy.TidyResult`: the tidy scene, moved objects outlined and named, their
+    """A :class:`~scenescore.tidying.TidyResult`: the tidy scene, moved objects outlined and named, their
     current poses dashed, and numbered arrows for the plan's pick-and-places (buffer moves dotted)."""
     import matplotlib
 

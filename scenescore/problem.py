@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .costs import Cost, Sum, Violation, as_sum
+from .costs import Cost, Sum, Violation, as_sum, guide
 from .devices import resolve_device
 from .sampling import uniform_init
 from .scene import Scene, SceneError, fits_bounds, wrap_angle
@@ -124,9 +124,9 @@ class Problem:
     ) -> Tensor:
         """Initial particles ``(B, N, 3)``: moving objects uniform in the bounds (``keep_known``: only unknown
         ones), drawn by ``generator`` (best on :attr:`device`; one elsewhere draws there and is copied).
-        ``proposals``: the fraction of the particles (the first ones) whose moving objects the cost's terms
-        propose instead where they can (:meth:`Cost.propose`: the learned energy's data-like poses beside
-        the known objects), centres kept inside the bounds."""
+        ``proposals``: the fraction of the particles (the first ones) whose moving objects the cost's
+        guiding terms propose instead where they can (:func:`scenescore.costs.guide.propose`), centres
+        kept inside the bounds."""
         x = self.base_poses()[None].repeat(particles, 1, 1)
         u = uniform_init((particles, self.n), self.lo, self.hi, generator, dtype=torch.float64)
         draw = self.movable_mask & (~self.known if keep_known else True)
@@ -134,7 +134,7 @@ class Problem:
         x = torch.where(mask, u, x)
         k = round(particles * proposals)
         if k > 0:
-            y = self.cost.propose(x[:k], generator)
+            y = guide.propose(self.cost, x[:k], generator)
             if y is not None:
                 xy = torch.minimum(torch.maximum(y[..., :2], self.lo), self.hi)
                 y = torch.cat([xy, wrap_angle(y[..., 2:])], dim=-1)
@@ -173,13 +173,13 @@ class Problem:
             else v
         )
 
-    def untrusted(self, poses: Tensor) -> Tensor:
-        """Rows ``(B,)`` that a term does not trust (:meth:`Cost.untrusted`: a moving object where the
-        learned energy's data never had one); all False when no term has an opinion."""
+    def doubted(self, poses: Tensor) -> Tensor:
+        """Rows ``(B,)`` that a guiding term of the cost doubts (:func:`scenescore.costs.guide.doubts`);
+        all False when no term has an opinion."""
         x = self.full(poses)
         with torch.no_grad():
-            u = self.cost.untrusted(x)
-        return torch.zeros(x.shape[0], dtype=torch.bool, device=self.device) if u is None else u
+            d = guide.doubts(self.cost, x)
+        return torch.zeros(x.shape[0], dtype=torch.bool, device=self.device) if d is None else d
 
     def check(self, poses: np.ndarray | Tensor, tol: float = FEASIBILITY_TOL) -> Feasibility:
         """The exact check of one pose set ``(N, 3)``: each cost term checks itself, within ``tol`` m."""

@@ -172,6 +172,97 @@ def check_fits(obj: SceneObject, bounds: Bounds, where: str) -> None:
         )
 
 
+def _object_label(d: Any, where: str, index: int) -> str:
+    """Check an object mapping's fields, name and category; the object's label for error messages."""
+    if not isinstance(d, dict):
+        raise SceneError(f"{where}: objects[{index}]: expected an object (a JSON mapping), got {d!r}")
+    label = f"{where}: object {d.get('name', f'#{index}')!r}"
+    unknown = set(d) - _OBJECT_KEYS
+    if unknown:
+        raise SceneError(
+            f"{label}: unknown field(s) {sorted(unknown)}; expected some of {sorted(_OBJECT_KEYS)}"
+        )
+    for key in ("name", "category", "size"):
+        if key not in d:
+            raise SceneError(f"{label}: missing field {key!r}")
+    if not isinstance(d["name"], str) or not d["name"]:
+        raise SceneError(f"{where}: objects[{index}].name: expected a non-empty string, got {d['name']!r}")
+    if not isinstance(d["category"], str) or not d["category"]:
+        raise SceneError(f"{label}: field 'category': expected a non-empty string, got {d['category']!r}")
+    return label
+
+
+def _object_size(value: Any, label: str) -> list[float]:
+    """The footprint ``[length, width]`` in metres, each side at least ``MIN_SIZE``."""
+    size = _vector(value, 2, f"{label}: field 'size'", MAX_LENGTH, " m")
+    if not min(size) >= MIN_SIZE:
+        raise SceneError(
+            f"{label}: field 'size': expected two positive lengths in metres (at least {MIN_SIZE:g}), "
+            f"got {size}"
+        )
+    return size
+
+
+def _object_pose(value: Any, label: str) -> tuple[float, ...] | None:
+    """``(x, y, theta)``, or ``None`` (JSON null: a pose to predict)."""
+    if value is None:
+        return None
+    return tuple(
+        _vector(value, 3, f"{label}: field 'pose' [x, y, theta]", (MAX_LENGTH, MAX_LENGTH, MAX_ANGLE))
+    )
+
+
+def _object_color(value: Any, label: str) -> list[float]:
+    """Three integers in 0..255 (as numbers; whole floats such as ``1.0`` are accepted)."""
+    color = _vector(value, 3, f"{label}: field 'color'")
+    if any(c < 0 or c > 255 or c != int(c) for c in color):
+        raise SceneError(f"{label}: field 'color': expected three integers in 0..255, got {value!r}")
+    return color
+
+
+def _object_fixed(value: Any, label: str) -> bool:
+    """Whether no solver may move the object: a JSON boolean."""
+    if not isinstance(value, bool):
+        raise SceneError(f"{label}: field 'fixed': expected true or false, got {value!r}")
+    return value
+
+
+def _object_shape(shape: Any, label: str) -> str | dict:
+    """``"box"``, ``"disk"`` or ``{"polygon": [[x, y], ...]}`` (a simple polygon with an area)."""
+    if isinstance(shape, str):
+        if shape not in ("box", "disk"):
+            raise SceneError(
+                f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}"
+            )
+        return shape
+    if isinstance(shape, dict) and set(shape) == {"polygon"}:
+        pts = shape["polygon"]
+        if not isinstance(pts, list) or len(pts) < 3:
+            raise SceneError(
+                f"{label}: field 'shape.polygon': expected at least 3 [x, y] points, got {pts!r}"
+            )
+        polygon = [
+            _vector(p, 2, f"{label}: field 'shape.polygon[{i}]'", MAX_LENGTH, " m") for i, p in enumerate(pts)
+        ]
+        _check_polygon(polygon, f"{label}: field 'shape.polygon'")
+        return {"polygon": polygon}
+    raise SceneError(f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}")
+
+
+def _object_features(value: Any, label: str) -> list[float] | None:
+    """A precomputed semantic vector, or ``None``."""
+    if value is None:
+        return None
+    return _vector(value, None, f"{label}: field 'features'", MAX_FEATURE)
+
+
+def _object_image(value: Any, label: str) -> str | None:
+    """The path of a crop to encode, or ``None``."""
+    if value is not None and (not isinstance(value, str) or not value.strip()):
+        raise SceneError(f"{label}: field 'image': expected a path string, got {value!r}")
+    return value
+
+
 @dataclass
 class SceneObject:
     """One object: identity, footprint, appearance and pose ``(x, y, theta)`` (``None``: to predict)."""
@@ -251,75 +342,14 @@ class SceneObject:
     @classmethod
     def from_dict(cls, d: Any, where: str = "scene", index: int = 0) -> SceneObject:
         """Parse one object; errors name ``where``, the object and the field."""
-        if not isinstance(d, dict):
-            raise SceneError(f"{where}: objects[{index}]: expected an object (a JSON mapping), got {d!r}")
-        label = f"{where}: object {d.get('name', f'#{index}')!r}"
-        unknown = set(d) - _OBJECT_KEYS
-        if unknown:
-            raise SceneError(
-                f"{label}: unknown field(s) {sorted(unknown)}; expected some of {sorted(_OBJECT_KEYS)}"
-            )
-        for key in ("name", "category", "size"):
-            if key not in d:
-                raise SceneError(f"{label}: missing field {key!r}")
-        if not isinstance(d["name"], str) or not d["name"]:
-            raise SceneError(
-                f"{where}: objects[{index}].name: expected a non-empty string, got {d['name']!r}"
-            )
-        if not isinstance(d["category"], str) or not d["category"]:
-            raise SceneError(f"{label}: field 'category': expected a non-empty string, got {d['category']!r}")
-        size = _vector(d["size"], 2, f"{label}: field 'size'", MAX_LENGTH, " m")
-        if not min(size) >= MIN_SIZE:
-            raise SceneError(
-                f"{label}: field 'size': expected two positive lengths in metres (at least {MIN_SIZE:g}), "
-                f"got {size}"
-            )
-        pose_raw = d.get("pose")
-        pose = (
-            None
-            if pose_raw is None
-            else tuple(
-                _vector(
-                    pose_raw, 3, f"{label}: field 'pose' [x, y, theta]", (MAX_LENGTH, MAX_LENGTH, MAX_ANGLE)
-                )
-            )
-        )
-        color_raw = d.get("color", [128, 128, 128])
-        color = _vector(color_raw, 3, f"{label}: field 'color'")
-        if any(c < 0 or c > 255 or c != int(c) for c in color):
-            raise SceneError(f"{label}: field 'color': expected three integers in 0..255, got {color_raw!r}")
-        fixed = d.get("fixed", False)
-        if not isinstance(fixed, bool):
-            raise SceneError(f"{label}: field 'fixed': expected true or false, got {fixed!r}")
-        shape = d.get("shape", "box")
-        if isinstance(shape, str):
-            if shape not in ("box", "disk"):
-                raise SceneError(
-                    f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}"
-                )
-        elif isinstance(shape, dict) and set(shape) == {"polygon"}:
-            pts = shape["polygon"]
-            if not isinstance(pts, list) or len(pts) < 3:
-                raise SceneError(
-                    f"{label}: field 'shape.polygon': expected at least 3 [x, y] points, got {pts!r}"
-                )
-            shape = {
-                "polygon": [
-                    _vector(p, 2, f"{label}: field 'shape.polygon[{i}]'", MAX_LENGTH, " m")
-                    for i, p in enumerate(pts)
-                ]
-            }
-            _check_polygon(shape["polygon"], f"{label}: field 'shape.polygon'")
-        else:
-            raise SceneError(
-                f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}"
-            )
-        feats = d.get("features")
-        if feats is not None:
-            feats = _vector(feats, None, f"{label}: field 'features'", MAX_FEATURE)
-        image = d.get("image")
-        if image is not None and (not isinstance(image, str) or not image.strip()):
-            raise SceneError(f"{label}: field 'image': expected a path string, got {image!r}")
+        label = _object_label(d, where, index)
+        size = _object_size(d["size"], label)
+        pose = _object_pose(d.get("pose"), label)
+        color = _object_color(d.get("color", [128, 128, 128]), label)
+        fixed = _object_fixed(d.get("fixed", False), label)
+        shape = _object_shape(d.get("shape", "box"), label)
+        feats = _object_features(d.get("features"), label)
+        image = _object_image(d.get("image"), label)
         if pose is None and fixed:
             raise SceneError(f"{label}: a fixed object needs a pose (got pose null and fixed true)")
         return cls(

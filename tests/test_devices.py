@@ -265,10 +265,10 @@ def test_device_cpu_is_the_default(files, capsys):
 
 def _run(device: str, scenes: list[ss.Scene], tmp: Path) -> dict[str, Any]:
     """Train, save and load, place, and solve with every solver on ``device``: the numbers."""
+    from scenescore.learn import TrainConfig, heldout_loss, train
     from scenescore.placement import PLACE, place
     from scenescore.sampling import PLACEMENT
     from scenescore.solvers.compare import compare
-    from scenescore.training import TrainConfig, heldout_loss, train
 
     out: dict[str, Any] = {}
     cfg = TrainConfig(iterations=2, batch_scenes=2, negatives=2, perturbed=1, chain_steps=2)
@@ -320,7 +320,7 @@ def test_train_place_and_solve_on_a_pretend_gpu_give_the_cpus_numbers(tmp_path):
 
 
 def test_a_learned_energy_runs_where_its_model_is(tmp_path):
-    from scenescore.training import TrainConfig, train
+    from scenescore.learn import TrainConfig, train
 
     scenes = ss.scenarios.get("dining").generate(4, 0)
     mp = pytest.MonkeyPatch()

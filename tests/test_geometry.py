@@ -9,7 +9,14 @@ import pytest
 import torch
 from shapely.geometry import MultiPoint, Point
 
-from scenescore.exact import collides, fcl_signed_distance, shapely_core
+from scenescore.exact import (
+    collides,
+    fcl_signed_distance,
+    footprint_extent,
+    footprint_extents,
+    footprints_overlap,
+    shapely_core,
+)
 from scenescore.geometry import Footprints, compose_poses, footprint_core, relative_poses, signed_distance
 from scenescore.scene import Scene, SceneObject
 
@@ -156,3 +163,17 @@ def test_relative_poses_undo_compose_poses():
     q = torch.tensor([0.5, -0.5, math.pi / 2], dtype=torch.float64)
     got = compose_poses(q, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64))
     assert torch.allclose(got, torch.tensor([0.5, 0.5, math.pi / 2], dtype=torch.float64), atol=1e-12)
+
+
+def test_extents_at_one_pose_and_many_agree_with_shapely():
+    """:func:`footprint_extent` (one pose) and :func:`footprint_extents` (many) are the placed core's
+    shapely bounds grown by the radius; :func:`footprints_overlap` is :func:`collides` away from contact."""
+    for a, pa, b, pb in _pairs(200, 5):
+        geo, r = shapely_core(a, pa)
+        x0, y0, x1, y1 = geo.bounds
+        assert footprint_extent(a, pa) == pytest.approx((x0 - r, y0 - r, x1 + r, y1 + r), abs=1e-12)
+        lo, hi = footprint_extents(a, np.array([pa, pb]))
+        assert np.r_[lo[0], hi[0]] == pytest.approx(footprint_extent(a, pa), abs=1e-12)
+        assert np.r_[lo[1], hi[1]] == pytest.approx(footprint_extent(a, pb), abs=1e-12)
+        if abs(_torch_sd(a, pa, b, pb)) > 1e-9:
+            assert footprints_overlap(a, pa, b, pb) == collides(a, pa, b, pb)

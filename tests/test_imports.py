@@ -30,12 +30,14 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.costs", 5),
     ("scenescore.problem", 6),
     ("scenescore.scenarios", 7),
+    ("scenescore.scenarios.zoo", 7),  # one module per zoo scenario on common.py (ZooScenario)
     ("scenescore.solvers", 8),
     ("scenescore.solvers.alm", 8),  # the batched augmented Lagrangian refinement
     ("scenescore.problem_file", 9),
-    ("scenescore.training", 10),
+    ("scenescore.learn", 10),  # training the energy: settings, counter-examples, losses, the loop
+    ("scenescore.learn.workflow", 10),  # `scenescore train`'s workflow: evaluates and calibrates tidying
     ("scenescore.placement", 10),
-    ("scenescore.tidy", 10),  # tidying a messy scene: effort, pruning, the pick-and-place plan
+    ("scenescore.tidying", 10),  # tidying a messy scene: effort, selection, pruning, the pick-and-place plan
     ("scenescore.evaluation", 10),
     ("scenescore.heatmap", 10),
     ("scenescore.plot", 10),

@@ -106,17 +106,13 @@ def test_categories_that_overlap_in_the_data_may_overlap_when_placed():
     assert overlapping_categories(scenes, 0.01) == [["lamp", "nightstand"]]
     torch.manual_seed(0)
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
-    model.info["trust"] = reference(model, scenes).to_dict()
+    model.info.trust = reference(model, scenes)
     hinge = non_overlap(model, scenes[0].without("lamp_0"))
     assert hinge is not None and hinge.pairs == [["lamp_0", "rug_0"]]
     assert overlapping(model, scenes[0], ["lamp_0"]) == []
-    # the reference is read once per stored dict, and again when training stores a new one
-    first = model.trust
-    assert first is not None and model.trust is first
-    model.info["trust"] = reference(model, scenes[:2]).to_dict()
-    again = model.trust
-    assert again is not first and again is not None and again.to_dict() == model.info["trust"]
-    model.info.pop("trust")
+    # the model's trust is the reference its info holds
+    assert model.trust is model.info.trust
+    model.info.trust = None
     assert model.trust is None
 
 

@@ -11,10 +11,12 @@ import torch
 
 import scenescore as ss
 from scenescore.evaluation import make_cases
+from scenescore.learn import NetworkConfig, TrainConfig, data_scale, train
 from scenescore.placement import PLACE, place_many
-from scenescore.training import TrainConfig, data_scale, train
 
-CFG = TrainConfig(iterations=12, batch_scenes=4, negatives=4, perturbed=2, model={"hidden": 16, "layers": 2})
+CFG = TrainConfig(
+    iterations=12, batch_scenes=4, negatives=4, perturbed=2, network=NetworkConfig(hidden=16, layers=2)
+)
 SMALL = replace(PLACE, particles=8, candidates=64, chain=replace(PLACE.chain, steps=8, final_descent=4))
 
 

@@ -12,11 +12,11 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from scenescore.cli import main  # noqa: E402
 from scenescore.errors import ConfigError  # noqa: E402
+from scenescore.learn import NetworkConfig, TrainConfig, log_validation, train  # noqa: E402
 from scenescore.scenarios import get  # noqa: E402
 from scenescore.scene import write_jsonl  # noqa: E402
-from scenescore.training import TrainConfig, log_validation, train  # noqa: E402
 
-CFG = TrainConfig(iterations=4, batch_scenes=4, negatives=4, model={"hidden": 16, "layers": 1})
+CFG = TrainConfig(iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
 
 
 def _scalars(log_dir):
@@ -37,7 +37,7 @@ def test_training_logs_loss_and_lr_every_iteration(tmp_path):
     assert lrs[0] == pytest.approx(CFG.lr) and lrs == sorted(lrs, reverse=True)  # cosine decay
     # the logged losses are the ones training records (its history: means of blocks of 10)
     mean = sum(v for _, v in s["train/loss"]) / 4
-    assert mean == pytest.approx(model.info["history"][0], abs=1e-4)
+    assert mean == pytest.approx(model.info.history[0], abs=1e-4)
     cats = [{"category": "tv", "t_cm": 2.0, "R_deg": 10.0, "baseline_t_cm": None}]
     log_validation(log, {"heldout_loss": 1.5, "mean_t_cm": 3.0, "mean_R_deg": None, "categories": cats}, 3)
     s = _scalars(log)

@@ -9,10 +9,10 @@ import torch
 import scenescore as ss
 import scenescore.threads as th
 from scenescore.errors import ConfigError
+from scenescore.learn import TrainConfig, train
 from scenescore.placement import place
 from scenescore.sampling import PLACEMENT
 from scenescore.solvers.langevin import LangevinOptions
-from scenescore.training import TrainConfig, train
 
 pytestmark = pytest.mark.own_threads
 

@@ -13,12 +13,12 @@ import torch
 
 from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
-from scenescore.models import ScoreModel, load
+from scenescore.models import ScoreModel, TidyCalibration, load
 from scenescore.problem import Problem
 from scenescore.sampling import PLACEMENT
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers.langevin import LangevinOptions
-from scenescore.tidy import (
+from scenescore.tidying import (
     COUNT,
     Step,
     TidyError,
@@ -33,8 +33,9 @@ from scenescore.tidy import (
     tidy_problem,
     validate_plan,
 )
-from scenescore.tidy import _placed as T_placed
-from scenescore.tidy import _select as T_select
+from scenescore.tidying.draws import NEAR, exchanges, near_draws, swap_draws
+from scenescore.tidying.pruning import place_again
+from scenescore.tidying.selection import select_moves
 
 
 def _two(a=(-0.2, 0.0), b=(0.2, 0.0)) -> Scene:
@@ -163,10 +164,10 @@ def test_options_are_checked_and_the_count_weight_falls_back_in_order():
     with pytest.raises(ConfigError, match="TidyOptions: place: expected true or false"):
         TidyOptions(place="yes")  # type: ignore[arg-type]
     assert count_weight(model) == COUNT  # no calibration stored
-    model.info["tidy"] = {"move_gain": 0.42}
+    model.info.tidy = TidyCalibration(move_gain=0.42)
     assert count_weight(model) == 0.42
     assert count_weight(model, TidyOptions(count=2.0)) == 2.0  # an explicit weight wins
-    model.info["tidy"] = {"move_gain": float("nan")}
+    model.info.tidy = TidyCalibration(move_gain=float("nan"))
     assert count_weight(model) == COUNT
 
 
@@ -195,11 +196,11 @@ def test_the_selection_moves_only_the_object_that_is_out_of_place():
     o = TidyOptions(propose=LangevinOptions(particles=256, chain=chain))
     target = 50.0 * PoseTarget("blue", (0.1, 0.0))
     prob = tidy_problem(model, scene, 1.0, options=o)
-    x = T_select(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
+    x = select_moves(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
     assert np.array_equal(x[scene.index("red")], scene.poses()[scene.index("red")])
     assert np.hypot(*(x[scene.index("blue"), :2] - [0.1, 0.0])) < 0.15
     prob = tidy_problem(model, scene, 1000.0, options=o)
-    x = T_select(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
+    x = select_moves(model, [scene], [Problem(scene, prob.cost + target, movable=prob.movable)], o, seed=0)[0]
     assert np.array_equal(x, scene.poses())  # every move costs more than it gains
 
 
@@ -223,17 +224,17 @@ def test_the_move_cost_follows_the_scene_size_and_falls_back_in_order():
         ]
     )
     assert count_weight(model, scene=two) == COUNT  # never calibrated
-    model.info["tidy"] = {"move_gain": 0.5}  # calibrated before gains per object
+    model.info.tidy = TidyCalibration(move_gain=0.5)  # calibrated before gains per object
     assert count_weight(model, scene=two) == 0.5
     gains = [0.01 * k for k in range(20)]
-    model.info["tidy"] = {"move_gain": 0.5, "gains": gains}
+    model.info.tidy = TidyCalibration(move_gain=0.5, gains=gains)
     assert count_weight(model, scene=two) == pytest.approx(float(np.quantile(gains, 0.75 ** (1 / 2))))
     one = Scene([two.objects[0]])
     assert count_weight(model, scene=one) == pytest.approx(float(np.quantile(gains, 0.75)))
     assert count_weight(model, scene=two) > count_weight(model, scene=one)  # more objects: a rarer gain
     assert count_weight(model) == 0.5  # no scene: the one cost
     assert count_weight(model, TidyOptions(count=1.0), two) == 1.0
-    model.info["tidy"]["gains"] = [float("nan")] * 20  # damaged: not used
+    model.info.tidy.gains = [float("nan")] * 20  # damaged: not used
     assert count_weight(model, scene=two) == 0.5
 
 
@@ -246,17 +247,15 @@ def test_calibrate_stores_every_objects_gain(tmp_path):
     gains = object_gains(model, scenes, seed=0)
     assert [(k, n) for k, n, _ in gains] == [(k, n) for k in range(4) for n in ("red", "blue")]
     gain = calibrate(model, scenes, seed=0)
-    info = model.info["tidy"]
-    assert info["gains"] == pytest.approx(sorted(max(0.0, g) for _, _, g in gains))
+    info = model.info.tidy
+    assert info is not None and info.gains == pytest.approx(sorted(max(0.0, g) for _, _, g in gains))
     best = [max(max(0.0, g) for k2, _, g in gains if k2 == k) for k in range(4)]
-    assert gain == info["move_gain"] == pytest.approx(float(np.quantile(best, 0.75)))
+    assert gain == info.move_gain == pytest.approx(float(np.quantile(best, 0.75)))
     model.save(tmp_path / "m.ckpt")
-    assert load(tmp_path / "m.ckpt").info["tidy"] == model.info["tidy"]
+    assert load(tmp_path / "m.ckpt").info.tidy == model.info.tidy
 
 
 def test_swap_draws_put_each_pair_in_each_others_places():
-    from scenescore.tidy import _swap_draws
-
     scene = Scene(
         [
             SceneObject("a", "box", (0.1, 0.1), (-0.3, 0.0, 0.1)),
@@ -265,20 +264,20 @@ def test_swap_draws_put_each_pair_in_each_others_places():
         ]
     )
     x = torch.zeros(12, 3, 3, dtype=torch.float64)
-    _swap_draws(x, scene, ["a", "b", "c"])
+    swap_draws(x, scene, ["a", "b", "c"])
     now = torch.as_tensor(scene.poses())
     assert torch.equal(x[:9], torch.zeros(9, 3, 3, dtype=torch.float64))  # the first three quarters as drawn
     assert torch.equal(x[9, 0], now[1]) and torch.equal(x[9, 1], now[0])  # a <-> b
     assert torch.equal(x[10, 0], now[2]) and torch.equal(x[10, 2], now[0])  # a <-> c
     assert torch.equal(x[11, 1], now[2]) and torch.equal(x[11, 2], now[1])  # b <-> c
     z = torch.zeros(24, 3, 3, dtype=torch.float64)  # two rounds: the second trades positions only
-    _swap_draws(z, scene, ["a", "b", "c"])
+    swap_draws(z, scene, ["a", "b", "c"])
     assert not z[:18].any() and torch.equal(z[18:21], x[9:12])
     assert torch.equal(z[21, 0], torch.stack([now[1, 0], now[1, 1], now[0, 2]]))  # at b's spot, own heading
     assert torch.equal(z[21, 1], torch.stack([now[0, 0], now[0, 1], now[1, 2]])) and not z[21, 2].any()
     assert torch.equal(z[23, 2], torch.stack([now[1, 0], now[1, 1], now[2, 2]])) and not z[23, 0].any()
     y = torch.zeros(8, 3, 3, dtype=torch.float64)
-    _swap_draws(y, scene, ["a"])  # one object: nothing to trade
+    swap_draws(y, scene, ["a"])  # one object: nothing to trade
     assert not y.any()
 
 
@@ -308,12 +307,12 @@ def _swapped_wells(
     chain = replace(PLACEMENT, steps=1, final_descent=0)
     o = TidyOptions(propose=LangevinOptions(particles=4096, chain=chain))
     prob = tidy_problem(model, scene, 1.0, options=o)
-    tidy_module = importlib.import_module("scenescore.tidy")
+    tidy_module = importlib.import_module("scenescore.tidying.selection")
     old = tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES
     tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES = pairs, swaps
     try:
         problem = Problem(scene, prob.cost + CostFn(wells, name="wells"), movable=prob.movable)
-        x = T_select(model, [scene], [problem], o, seed=0)[0]
+        x = select_moves(model, [scene], [problem], o, seed=0)[0]
     finally:
         tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES = old
     moved = [n for i, n in enumerate(scene.names) if not np.array_equal(x[i], scene.poses()[i])]
@@ -339,11 +338,9 @@ def test_the_selection_tries_the_exchange_of_two_objects_of_different_kinds():
 
 
 def test_near_draws_start_an_eighth_of_the_draws_beside_the_current_poses():
-    from scenescore.tidy import NEAR, _near_draws
-
     scene = _two(a=(-0.3, 0.1), b=(0.3, -0.1))
     x = torch.full((32, 2, 3), 9.0, dtype=torch.float64)
-    _near_draws(x, scene, [1], 0.05, torch.Generator().manual_seed(0))
+    near_draws(x, scene, [1], 0.05, torch.Generator().manual_seed(0))
     near = x[20:24, 1]  # 32 draws: the eighth before the last quarter
     now = torch.as_tensor(scene.poses()[1])
     assert torch.all((near[:, :2] - now[:2]).abs() < 5 * NEAR * 0.05) and not torch.equal(near[0], now)
@@ -351,10 +348,8 @@ def test_near_draws_start_an_eighth_of_the_draws_beside_the_current_poses():
 
 
 def test_exchanges_trade_whole_poses_then_positions():
-    from scenescore.tidy import _exchanges
-
     x = np.array([[0.0, 0.0, 0.1], [1.0, 0.0, 0.2], [0.0, 1.0, 0.3]])
-    out = _exchanges(x, [(0, 1), (1, 2)])
+    out = exchanges(x, [(0, 1), (1, 2)])
     assert out.shape == (4, 3, 3)
     assert np.array_equal(
         out[0], [[1.0, 0.0, 0.2], [0.0, 0.0, 0.1], [0.0, 1.0, 0.3]]
@@ -410,7 +405,7 @@ def _relation_tie(weights: dict[str, float] | None) -> list[str]:
     o = TidyOptions(propose=LangevinOptions(particles=512, chain=chain))
     prob = tidy_problem(model, scene, 1.0, weights=weights, options=o)
     problem = Problem(scene, prob.cost + CostFn(relation, name="relation"), movable=prob.movable)
-    x = T_select(model, [scene], [problem], o, seed=0)[0]
+    x = select_moves(model, [scene], [problem], o, seed=0)[0]
     return [n for i, n in enumerate(scene.names) if not np.array_equal(x[i], scene.poses()[i])]
 
 
@@ -424,7 +419,7 @@ def test_the_placement_candidates_leave_each_moved_object_out_in_turn():
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     scene = _two(a=(-0.3, 0.1), b=(0.3, -0.1))
     now = scene.poses()
-    one, two, none = T_placed(model, [scene, scene, scene], [["red"], ["red", "blue"], []], seed=0)
+    one, two, none = place_again(model, [scene, scene, scene], [["red"], ["red", "blue"], []], seed=0)
     assert len(one) == 1 and len(two) == 3 and none == []
     assert np.array_equal(one[0][1], now[1])  # blue, not in the set, stays exactly
     # the whole set placed, then the set with red left where it is, then with blue left where it is
@@ -437,7 +432,7 @@ def test_placing_ahead_on_a_second_core_gives_the_same_answer_to_the_bit(monkeyp
 
     from scenescore.threads import Ahead
 
-    T = importlib.import_module("scenescore.tidy")
+    T = importlib.import_module("scenescore.tidying.pipeline")
     torch.manual_seed(0)
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     scene = Scene(
@@ -449,7 +444,7 @@ def test_placing_ahead_on_a_second_core_gives_the_same_answer_to_the_bit(monkeyp
     )
     o = replace(_quick(), count=0.0)  # moving is free: the selection moves objects, so there is work ahead
     used: list[tuple[list[str], bool, list[np.ndarray]]] = []
-    placed = T._placed
+    placed = T.place_again
 
     def spy(model, scenes, moved, seed):
         out = placed(model, scenes, moved, seed)
@@ -460,7 +455,7 @@ def test_placing_ahead_on_a_second_core_gives_the_same_answer_to_the_bit(monkeyp
         f = self._futures.get(key)
         return work() if f is None or f.cancelled() else f.result()
 
-    monkeypatch.setattr(T, "_placed", spy)
+    monkeypatch.setattr(T, "place_again", spy)
     threads = torch.get_num_threads()
     serial = tidy(model, scene, effort=0.2, seed=3, options=o).to_dict()
     assert serial["moved"] and used == [(serial["moved"], True, used[0][2])]

@@ -9,10 +9,10 @@ import torch
 from scenescore import Scene, SceneObject
 from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
+from scenescore.learn import RAW_EDGES, NetworkConfig, TrainConfig, train
 from scenescore.placement import PLACE as PLACE_DEFAULT
 from scenescore.placement import place
 from scenescore.sampling import LangevinConfig
-from scenescore.training import RAW_EDGES, TrainConfig, train
 
 
 def _offset_scenes(n, seed):
@@ -30,7 +30,7 @@ def _offset_scenes(n, seed):
     return out
 
 
-CFG = TrainConfig(iterations=150, batch_scenes=8, negatives=8, model={"hidden": 32, "layers": 2})
+CFG = TrainConfig(iterations=150, batch_scenes=8, negatives=8, network=NetworkConfig(hidden=32, layers=2))
 PLACE = replace(
     PLACE_DEFAULT,
     particles=64,
@@ -42,7 +42,7 @@ PLACE = replace(
 def test_tiny_training_learns_a_fixed_offset():
     torch.set_num_threads(1)
     model = train(_offset_scenes(24, 0), CFG, seed=0, progress=False)
-    assert model.info["final_loss"] < model.info["chance_loss"]
+    assert model.info.final_loss < model.info.chance_loss
     errs = []
     for s in _offset_scenes(6, 99):
         truth = s["b"].pose
@@ -53,7 +53,7 @@ def test_tiny_training_learns_a_fixed_offset():
 
 def test_same_seed_same_numbers():
     torch.set_num_threads(1)
-    cfg = TrainConfig(iterations=10, batch_scenes=4, negatives=4, model={"hidden": 16, "layers": 1})
+    cfg = TrainConfig(iterations=10, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
     scenes = _offset_scenes(6, 1)
     m1 = train(scenes, cfg, seed=5, progress=False)
     m2 = train(scenes, cfg, seed=5, progress=False)
@@ -85,7 +85,7 @@ def test_fixed_objects_never_move():
 def test_feature_noise_is_seeded_and_changes_training():
     torch.set_num_threads(1)
     scenes = _offset_scenes(6, 1)
-    cfg = TrainConfig(iterations=5, batch_scenes=4, negatives=4, model={"hidden": 16, "layers": 1})
+    cfg = TrainConfig(iterations=5, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
     quiet = TrainConfig(**{**cfg.to_dict(), "feature_noise": 0.0})
     a, b = (train(scenes, cfg, seed=2, progress=False) for _ in range(2))
     c = train(scenes, quiet, seed=2, progress=False)
@@ -97,7 +97,11 @@ def test_size_noise_is_seeded_and_changes_training():
     torch.set_num_threads(1)
     scenes = _offset_scenes(6, 1)
     cfg = TrainConfig(
-        iterations=5, batch_scenes=4, negatives=4, feature_noise=0.0, model={"hidden": 16, "layers": 1}
+        iterations=5,
+        batch_scenes=4,
+        negatives=4,
+        feature_noise=0.0,
+        network=NetworkConfig(hidden=16, layers=1),
     )
     assert cfg.size_noise > 0  # on by default
     quiet = TrainConfig(**{**cfg.to_dict(), "size_noise": 0.0})
@@ -110,12 +114,12 @@ def test_size_noise_is_seeded_and_changes_training():
 
 
 def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch):
-    import scenescore.training as training
+    from scenescore.learn import loop
 
     torch.set_num_threads(1)
     scenes = _offset_scenes(6, 1)
     cfg = TrainConfig(
-        iterations=8, batch_scenes=4, negatives=4, average=0.5, model={"hidden": 16, "layers": 1}
+        iterations=8, batch_scenes=4, negatives=4, average=0.5, network=NetworkConfig(hidden=16, layers=1)
     )
     seen = []  # the weights after each averaged iteration
 
@@ -124,8 +128,8 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
         seen.append([p.detach().clone() for p in params])
         return average(shadow, params, decay)
 
-    average = training._average
-    monkeypatch.setattr(training, "_average", record)
+    average = loop.moving_average
+    monkeypatch.setattr(loop, "moving_average", record)
     model = train(scenes, cfg, seed=2, progress=False)
     assert len(seen) == 4  # iterations 4 .. 7
     decay = 0.25
@@ -150,13 +154,13 @@ def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
     small = {"iterations": 2, "batch_scenes": 2, "negatives": 2}
     assert train(scenes, TrainConfig(**small), seed=0, progress=False).config.edge_encoder == 32
     raw = train(scenes, TrainConfig(**small, **RAW_EDGES), seed=0, progress=False)
-    assert raw.config.edge_encoder is None and raw.info["train_config"]["size_noise"] == 0.0
+    assert raw.config.edge_encoder is None and raw.info.train_config["size_noise"] == 0.0
 
 
 def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     """Scenes of 3 to 20 objects in one batch: the grouped, cropped pass gives the padded pass's energies
     to float rounding (padding adds only zeros), in several groups, and so do their gradients."""
-    from scenescore.training import _best_cuts, _BySize
+    from scenescore.learn.size_groups import SizeGroups, best_cuts
 
     def row(n: int, shift: float) -> Scene:
         objs = [
@@ -167,7 +171,7 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     scenes = [row(n, 0.001 * n) for n in (3, 4, 5, 8, 9, 12, 19, 20)]
     model = train(scenes, TrainConfig(iterations=2, batch_scenes=4, negatives=2), seed=0, progress=False)
     st = model.tensors(scenes)
-    by = _BySize(st.mask.sum(dim=1))
+    by = SizeGroups(st.mask.sum(dim=1))
     assert len(by.groups) > 1 and sorted(i for g, _ in by.groups for i in g) == list(range(8))
     k = 3
     rep = st.repeat(k)
@@ -179,11 +183,11 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     (g2,) = torch.autograd.grad(by.bound(model, rep, k)(x).sum(), w)
     assert torch.allclose(g1, g2, rtol=1e-4, atol=1e-5 * float(g1.abs().max()))
     # one size, or grouping turned off: one group; the cuts minimise the padded edges
-    assert len(_BySize(torch.tensor([6, 6, 6, 6])).groups) == 1
-    assert len(_BySize(st.mask.sum(dim=1), enabled=False).groups) == 1
+    assert len(SizeGroups(torch.tensor([6, 6, 6, 6])).groups) == 1
+    assert len(SizeGroups(st.mask.sum(dim=1), enabled=False).groups) == 1
     with pytest.raises(ConfigError, match="group_sizes"):
         TrainConfig(group_sizes="yes")  # type: ignore[arg-type]
-    assert _best_cuts([2, 2, 10, 10], 4) in ([2, 4], [1, 2, 3, 4], [2, 3, 4], [1, 2, 4])
+    assert best_cuts([2, 2, 10, 10], 4) in ([2, 4], [1, 2, 3, 4], [2, 3, 4], [1, 2, 4])
 
 
 def _row(n: int = 4) -> Scene:
@@ -196,8 +200,8 @@ def _row(n: int = 4) -> Scene:
 
 
 def test_reanchored_negatives_move_one_object_next_to_another_anchor():
+    from scenescore.learn import reanchored_negatives
     from scenescore.models import ScoreModel
-    from scenescore.training import reanchored_negatives
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     st = model.tensors([_row()])
@@ -221,67 +225,65 @@ def test_reanchored_negatives_move_one_object_next_to_another_anchor():
 def test_reanchored_counter_examples_are_seeded_and_change_training():
     torch.set_num_threads(1)
     scenes = [_row(4) for _ in range(4)]
-    cfg = TrainConfig(iterations=4, batch_scenes=4, negatives=4, model={"hidden": 16, "layers": 1})
+    cfg = TrainConfig(iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
     a, b = (train(scenes, replace(cfg, reanchored=3), seed=2, progress=False) for _ in range(2))
     c = train(scenes, replace(cfg, reanchored=0), seed=2, progress=False)
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
-    assert a.info["chance_loss"] == pytest.approx(math.log(4 + 3 + 1))
+    assert a.info.chance_loss == pytest.approx(math.log(4 + 3 + 1))
     with pytest.raises(ConfigError, match="reanchored"):
         TrainConfig(reanchored=-1)
 
 
 def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
+    from scenescore.learn import ChainBuffer
     from scenescore.models import ScoreModel
-    from scenescore.training import _ChainBuffer
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     data = model.tensors([_row(5)] * 2)
     cfg = TrainConfig(reanchor_restart=1.0)
-    buf = _ChainBuffer(data, 6, cfg, torch.Generator().manual_seed(0))
+    buf = ChainBuffer(data, 6, cfg, torch.Generator().manual_seed(0))
     moved = (buf.poses != data.poses[:, None]).any(dim=-1)  # (S, K, N)
     assert torch.equal(moved, buf.movable)  # the object put on another anchor, and it alone, moves
     assert bool((moved.sum(dim=-1) == 1).all())
     assert bool((buf.age == cfg.chain.steps // 2).all())  # halfway through the schedule
-    plain = _ChainBuffer(data, 6, TrainConfig(reanchor_restart=0.0), torch.Generator().manual_seed(0))
+    plain = ChainBuffer(data, 6, TrainConfig(reanchor_restart=0.0), torch.Generator().manual_seed(0))
     assert bool((plain.age == 0).all()) and int(plain.movable.sum(dim=-1).max()) > 1
     with pytest.raises(ConfigError, match="reanchor_restart"):
         TrainConfig(reanchor_restart=1.5)
 
 
-def test_model_cache_trains_each_model_once_and_only_within_its_block(tmp_path, monkeypatch):
-    import os
-
-    from scenescore import training
-    from scenescore.training import MODEL_CACHE_ENV, model_cache
+def test_model_cache_trains_each_model_once_and_only_where_asked(tmp_path, monkeypatch):
+    from scenescore.learn import loop
 
     scenes = _offset_scenes(6, 0)
     cfg = replace(CFG, iterations=3)
-    with model_cache(tmp_path / "m") as folder:
-        first = train(scenes, cfg, seed=1, progress=False)
-        assert len(list(folder.glob("*.ckpt"))) == 1
-        real = training._train
+    folder = tmp_path / "m"
+    first = train(scenes, cfg, seed=1, progress=False, cache=folder)
+    assert len(list(folder.glob("*.ckpt"))) == 1
+    real = loop.fit
 
-        def never(*a, **k):
-            raise AssertionError("trained again")
+    def never(*a, **k):
+        raise AssertionError("trained again")
 
-        monkeypatch.setattr(training, "_train", never)
-        again = train(scenes, cfg, seed=1, progress=False)  # loaded, not trained
-        x = torch.stack([torch.as_tensor(s.poses(), dtype=torch.float32) for s in scenes])
-        st = first.tensors(scenes)
-        assert torch.equal(first.energy(x, st), again.energy(x, again.tensors(scenes)))
-        monkeypatch.setattr(training, "_train", real)
-        train(scenes, cfg, seed=2, progress=False)  # another seed: another model
-        train(scenes, cfg, encoder=FootprintEncoder(), seed=1, progress=False)  # an encoder: not kept
-        assert len(list(folder.glob("*.ckpt"))) == 2
-        threads = torch.get_num_threads()
-        torch.set_num_threads(threads + 1)  # another thread count rounds otherwise: another model
-        try:
-            train(scenes, cfg, seed=1, progress=False)
-        finally:
-            torch.set_num_threads(threads)
-        assert len(list(folder.glob("*.ckpt"))) == 3
-    assert MODEL_CACHE_ENV not in os.environ  # outside the block nothing is read or kept
-    monkeypatch.setattr(training, "_train", never)
+    monkeypatch.setattr(loop, "fit", never)
+    again = train(scenes, cfg, seed=1, progress=False, cache=folder)  # loaded, not trained
+    x = torch.stack([torch.as_tensor(s.poses(), dtype=torch.float32) for s in scenes])
+    st = first.tensors(scenes)
+    assert torch.equal(first.energy(x, st), again.energy(x, again.tensors(scenes)))
+    monkeypatch.setattr(loop, "fit", real)
+    train(scenes, cfg, seed=2, progress=False, cache=folder)  # another seed: another model
+    train(
+        scenes, cfg, encoder=FootprintEncoder(), seed=1, progress=False, cache=folder
+    )  # an encoder: not kept
+    assert len(list(folder.glob("*.ckpt"))) == 2
+    threads = torch.get_num_threads()
+    torch.set_num_threads(threads + 1)  # another thread count rounds otherwise: another model
+    try:
+        train(scenes, cfg, seed=1, progress=False, cache=folder)
+    finally:
+        torch.set_num_threads(threads)
+    assert len(list(folder.glob("*.ckpt"))) == 3
+    monkeypatch.setattr(loop, "fit", never)
     with pytest.raises(AssertionError, match="trained again"):
-        train(scenes, cfg, seed=1, progress=False)
+        train(scenes, cfg, seed=1, progress=False)  # without a cache nothing is read

@@ -8,9 +8,9 @@ import pytest
 import torch
 
 from scenescore.cli import main
+from scenescore.learn import check_training_data
 from scenescore.scenarios import DiningScenario
 from scenescore.scene import SceneError, read_jsonl, write_jsonl
-from scenescore.training import check_training_data
 
 
 @pytest.fixture(scope="module")

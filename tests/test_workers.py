@@ -118,13 +118,12 @@ def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(mo
     import os
 
     from scenescore.cli import experiment, main
-    from scenescore.training import MODEL_CACHE_ENV
 
     seen = []
 
     def runner(name):
         def run(args, out):
-            seen.append((name, os.environ.get(MODEL_CACHE_ENV)))
+            seen.append((name, None if args.model_cache is None else str(args.model_cache)))
             return f"## {name}", []
 
         return run
@@ -135,7 +134,7 @@ def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(mo
     assert [n for n, _ in seen] == experiment.EXPERIMENTS and len(folders) == 1
     (folder,) = folders
     assert folder is not None and folder.startswith(str(tmp_path / "all"))
-    assert not os.path.exists(folder) and MODEL_CACHE_ENV not in os.environ  # gone with the run
+    assert not os.path.exists(folder)  # gone with the run
     assert (tmp_path / "all" / "report.md").exists()
     seen.clear()
     assert main(["experiment", "heatmap", "--jobs", "1", "--out", str(tmp_path / "h")]) == 0

@@ -5,13 +5,25 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..training import VALIDATION_FRACTION
+from ..learn import (
+    RAW_EDGES,
+    VALIDATION_FRACTION,
+    NetworkConfig,
+    TrainConfig,
+    check_training_data,
+    require_tensorboard,
+)
 from . import UserError, add_common, add_device, device_of, number
 
 PPM = number(0, open_lo=True)  # pixels per metre
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    _add_generate(sub)
+    _add_train(sub)
+
+
+def _add_generate(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "generate",
         help="generate scenes from a scenario",
@@ -30,6 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_common(p)
     p.set_defaults(func=run_generate)
 
+
+def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "train",
         help="train an energy model on example arrangements",
@@ -65,9 +79,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--raw-edges",
         action="store_true",
-        help="no edge encoder: the message layers read the raw relative poses, trained as the earlier "
-        "default was (its feature noise, no re-anchored counter-examples; better on Table 2's ordered "
-        "rows, worse on larger rooms)",
+        help="no edge encoder: the message layers read the raw relative poses, with feature noise 0.3, "
+        "no size noise and no re-anchored counter-examples (better on Table 2's ordered rows, worse on "
+        "larger rooms)",
     )
     p.add_argument(
         "--encoder",
@@ -83,6 +97,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="pixels per metre of the images (folder input; default: from the folder's dataset.json)",
     )
+    _add_train_outputs(p)
+    add_common(p)
+    add_device(p)
+    p.set_defaults(func=run_train)
+
+
+def _add_train_outputs(p: argparse.ArgumentParser) -> None:
+    """``scenescore train``'s held-out scenes and what it writes besides the checkpoint."""
     p.add_argument(
         "--val",
         type=number(0, 1, open_hi=True),
@@ -114,9 +136,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="write a TensorBoard log to this folder: the loss and learning rate of every iteration, then "
         "the held-out figures (needs the 'tensorboard' extra)",
     )
-    add_common(p)
-    add_device(p)
-    p.set_defaults(func=run_train)
 
 
 def run_generate(args: argparse.Namespace) -> int:
@@ -146,29 +165,26 @@ def run_generate(args: argparse.Namespace) -> int:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    import json
-    import sys
-
     from ..encoders import make_encoder
-    from ..evaluation import evaluate
-    from ..plot import training_figure
-    from ..scene import atomic_write_text, read_jsonl, write_jsonl
-    from ..training import RAW_EDGES, TrainConfig, check_training_data, split_validation, train
+    from ..learn.workflow import NothingLearned, train_model
+    from ..scene import check_output_path, read_jsonl
 
     # settings first: a bad value fails before any data is read or any training is done
     given = {"iterations": args.iterations, "negatives": args.negatives, "average": args.average}
     raw = RAW_EDGES if args.raw_edges else {}
-    cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None}, **raw)
+    network = {k: v for k, v in {"activation": args.activation, "message": args.message}.items() if v}
+    if args.absolute:
+        network["absolute"] = True
+    cfg = TrainConfig(
+        **{k: v for k, v in given.items() if v is not None}, **raw, network=NetworkConfig(**network)
+    )
     device = device_of(args)
     if args.log_dir is not None:
-        from ..scene import check_output_path
-        from ..training import require_tensorboard
-
         check_output_path(args.log_dir, "--log-dir", folder=True)
         require_tensorboard()
     encoder = make_encoder(args.encoder or ("image" if args.data.is_dir() else "footprint"))
     if args.data.is_dir():
-        from ..vision import scenes_from_image_folder
+        from ..vision.graph import scenes_from_image_folder
 
         kw = {} if args.ppm is None else {"ppm": args.ppm}
         scenes = scenes_from_image_folder(args.data, encoder, progress=not args.quiet, **kw)
@@ -177,79 +193,32 @@ def run_train(args: argparse.Namespace) -> int:
     else:
         raise UserError(f"{args.data}: no such file or folder")
     check_training_data(scenes)
-    model_kw = {k: v for k, v in {"activation": args.activation, "message": args.message}.items() if v}
-    if args.absolute:
-        model_kw["absolute"] = True
-    cfg.model.update(model_kw)
+    heldout = None
     if args.val_data is not None:
         if not args.val_data.exists():
             raise UserError(f"--val-data {args.val_data}: no such file")
-        train_s, held = scenes, read_jsonl(args.val_data)
-    elif args.val > 0 and len(scenes) < 6:
-        print(
-            f"warning: {len(scenes)} scenes are too few to hold out 4 for validation and train on 2; "
-            "training on all of them without validation (give held-out scenes with --val-data)",
-            file=sys.stderr,
+        heldout = read_jsonl(args.val_data)
+    try:
+        train_model(
+            scenes,
+            cfg,
+            encoder=encoder,
+            seed=args.seed,
+            heldout=heldout,
+            fraction=args.val,
+            out=args.out,
+            report=args.report,
+            plot=args.plot,
+            force=args.force,
+            log_dir=args.log_dir,
+            device=device,
+            progress=not args.quiet,
+            source=args.data,
         )
-        train_s, held = scenes, []
-    else:
-        train_s, held = split_validation(scenes, args.val, seed=args.seed)
-    model = train(
-        train_s,
-        cfg,
-        encoder=encoder,
-        seed=args.seed,
-        progress=not args.quiet,
-        validation=held,
-        log_dir=args.log_dir,
-        device=device,
-    )
-    info = model.info
-    print(
-        f"trained on {info['scenes']} scenes in {info['seconds']:.0f} s "
-        f"(final loss {info['final_loss']:.3f}, chance {info['chance_loss']:.3f})"
-    )
-    if not info["final_loss"] < info["chance_loss"] and not args.force:
+    except NothingLearned as e:
         raise UserError(
-            f"the training loss ({info['final_loss']:.3f}) never fell below chance ({info['chance_loss']:.3f}): "
+            f"the training loss ({e.final_loss:.3f}) never fell below chance ({e.chance_loss:.3f}): "
             f"the model learned nothing, so {args.out} was not written; train longer (--iterations) or "
             "pass --force to write it anyway"
-        )
-    report: dict = {"checkpoint": str(args.out), "training": {k: v for k, v in info.items() if k != "trust"}}
-    if held:
-        ev = evaluate(model, held, train_s, seed=args.seed, progress=not args.quiet)
-        model.info["validation"] = report["validation"] = ev.to_dict()
-        if args.log_dir is not None:
-            from ..training import log_validation
-
-            log_validation(args.log_dir, ev.to_dict(), cfg.iterations - 1)
-        print(f"\nleave-one-object-out on {len(held)} held-out scenes (seed {args.seed}):\n{ev.table()}")
-        if args.val_data is None:
-            held_file = args.out.with_name(args.out.stem + ".val.jsonl")
-            write_jsonl(held_file, held)
-            report["held_out_file"] = str(held_file)
-            print(
-                f"held-out scenes -> {held_file}; `scenescore evaluate {args.out} {held_file} --train-data "
-                f"{args.data} --seed {args.seed}` prints the same figures"
-            )
-        if args.plot is not None:
-            training_figure(info["history"], info["chance_loss"], ev.examples, args.plot)
-            print(f"wrote {args.plot}")
-    elif args.plot is not None:
-        training_figure(info["history"], info["chance_loss"], [], args.plot)
-        print(f"wrote {args.plot}")
-    from ..tidy import calibrate, count_weight
-
-    right = held or train_s[:16]  # scenes taken as right: the held-out ones, else some training ones
-    calibrate(model, right, seed=args.seed)
-    report["tidy"] = model.info["tidy"]
-    print(
-        f"tidy: a move must lower the energy by {count_weight(model, scene=right[0]):.3f} at effort 1 in a scene "
-        f"of {len(right[0])} objects (the single-move gains of {len(right)} "
-        f"{'held-out' if held else 'training'} scenes)"
-    )
-    model.save(args.out)
-    report_path = args.report or args.out.with_name("train_report.json")
-    atomic_write_text(report_path, json.dumps(report, indent=1) + "\n")
-    print(f"wrote {args.out} and {report_path}")
+        ) from None
     return 0

@@ -32,11 +32,11 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..evaluation import OraclePlacer, make_cases, score_cases
+    from ..learn import TrainConfig
     from ..placement import SceneScorePlacer
     from ..plot import demo_figure
     from ..scenarios import DiningScenario
     from ..scene import write_jsonl
-    from ..training import TrainConfig
 
     t0 = time.perf_counter()
     cfg = TrainConfig() if args.iterations is None else TrainConfig(iterations=args.iterations)
@@ -54,8 +54,8 @@ def run(args: argparse.Namespace) -> int:
     placer.model.save(out / "model.ckpt")
     info = placer.model.info
     print(
-        f"2. trained the energy in {info['seconds']:.0f} s: InfoNCE loss {info['final_loss']:.3f} "
-        f"(chance {info['chance_loss']:.3f}) -> {out}/model.ckpt"
+        f"2. trained the energy in {info.seconds:.0f} s: InfoNCE loss {info.final_loss:.3f} "
+        f"(chance {info.chance_loss:.3f}) -> {out}/model.ckpt"
     )
 
     cases = make_cases(test, scenario.missing)

@@ -15,15 +15,8 @@ if TYPE_CHECKING:
 EXPERIMENTS = ["missing", "novel", "heatmap", "compose", "zoo", "tidy"]
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "experiment",
-        help="run one of the paper's experiments",
-        description=(
-            "Run one of the paper's experiments and print its table with the paper's figures beside ours; "
-            "writes table.md and results.json under --out."
-        ),
-    )
+def _add_selection(p: argparse.ArgumentParser) -> None:
+    """Which experiment, over how many seeds, which methods and scenarios, and where it writes."""
     p.add_argument("name", choices=EXPERIMENTS + ["all"], help="which experiment")
     p.add_argument("--seeds", type=int, default=3, help="seeds to average over (default 3)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/experiment-NAME)")
@@ -32,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="comma-separated subset of the methods (default all). missing: "
         "NeatNet, Nearest-Nbr, SceneScore-Abs, 'SceneScore (LeakyReLU)', SceneScore, Oracle, and only "
-        "when named 'SceneScore (raw edges)' (no edge encoder, the earlier default); novel: "
+        "when named 'SceneScore (raw edges)' (no edge encoder, as train --raw-edges); novel: "
         "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>alm)', "
         "'SceneScore (langevin>osqp)', "
         "'SceneScore (langevin>casadi)'",
@@ -43,6 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="zoo: comma-separated subset of the zoo's scenarios (default all ten); tidy: of its scenarios "
         "(default dining,desk,tv,zoo-workstation,zoo-hall)",
     )
+
+
+def _add_running(p: argparse.ArgumentParser) -> None:
+    """How the runs are carried out: worker processes, placement by the energy alone, a short smoke test."""
     p.add_argument(
         "--jobs",
         type=int,
@@ -59,6 +56,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--quick", action="store_true", help="short training, for a smoke test (figures not comparable)"
     )
+
+
+def _add_tidy(p: argparse.ArgumentParser) -> None:
+    """The tidy experiment's test scenes, effort weights and training length."""
     p.add_argument(
         "--test-scenes",
         type=int,
@@ -76,6 +77,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="tidy: training iterations per scenario (default the trainer's 600; 30 with --quick)",
     )
+
+
+def _add_variants(p: argparse.ArgumentParser) -> None:
+    """Variants of the methods: compose's refinement options, graphs from images, novel's encoders."""
     p.add_argument(
         "--alm",
         default=None,
@@ -97,6 +102,22 @@ def register(sub: argparse._SubParsersAction) -> None:
             "its weights are set; default without: the one SceneScore row, footprint encoder)"
         ),
     )
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``scenescore experiment`` to the command line's subcommands."""
+    p = sub.add_parser(
+        "experiment",
+        help="run one of the paper's experiments",
+        description=(
+            "Run one of the paper's experiments and print its table with the paper's figures beside ours; "
+            "writes table.md and results.json under --out."
+        ),
+    )
+    _add_selection(p)
+    _add_running(p)
+    _add_tidy(p)
+    _add_variants(p)
     add_common(p)
     add_device(p)
     p.set_defaults(func=run)
@@ -114,17 +135,17 @@ def run(args: argparse.Namespace) -> int:
         args.jobs = default_jobs(args.device)
         if args.jobs > 1:
             print(f"experiment: {args.jobs} worker processes, one per usable core (--jobs 1: one process)")
+    args.model_cache = None  # the folder every runner passes to training as its model cache
     if args.name != "all":
         return _run_each(args, [args.name])
     import tempfile
-
-    from ..training import model_cache
 
     root = args.out or Path("runs") / "experiment-all"
     root.mkdir(parents=True, exist_ok=True)
     # a model that two experiments train alike (the dining energy of Table 1 and of tidying, say) is
     # trained once; the folder lives as long as this run, so no model of other code is ever read
-    with tempfile.TemporaryDirectory(prefix=".models-", dir=root) as folder, model_cache(folder):
+    with tempfile.TemporaryDirectory(prefix=".models-", dir=root) as folder:
+        args.model_cache = Path(folder)
         return _run_each(args, EXPERIMENTS, root)
 
 
@@ -173,7 +194,7 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     scenes_fn, encoder = None, None
     if args.from_images:
         from ..encoders import make_encoder
-        from ..vision import graphs_from_renders
+        from ..vision.graph import graphs_from_renders
 
         encoder = make_encoder("image")
 
@@ -189,6 +210,7 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         encoder=encoder,
         device=args.device,
         jobs=args.jobs,
+        cache=args.model_cache,
     )
     md = (
         "## Table 1: missing objects"
@@ -231,7 +253,7 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     encoders = [make_encoder(n) for n in names] if names else None
     scenes_fn = None
     if args.from_images:
-        from ..vision import graphs_from_renders
+        from ..vision.graph import graphs_from_renders
 
         def scenes_fn(train, test, encoder):
             return graphs_from_renders(train, encoder=encoder), graphs_from_renders(test, encoder=encoder)
@@ -245,6 +267,7 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         scenes_fn=scenes_fn,
         device=args.device,
         jobs=args.jobs,
+        cache=args.model_cache,
     )
     md = (
         "## Table 2: novel objects (ordered rows of cutlery)"
@@ -269,7 +292,12 @@ def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import heatmap
 
     res = heatmap.run(
-        seeds=args.seeds, quick=args.quick, progress=not args.quiet, out=out, device=args.device
+        seeds=args.seeds,
+        quick=args.quick,
+        progress=not args.quiet,
+        out=out,
+        device=args.device,
+        cache=args.model_cache,
     )
     md = heatmap.format_heatmap(res)
     return md, res.rows()
@@ -286,6 +314,7 @@ def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         device=args.device,
         jobs=args.jobs,
         refine_options=None if args.alm is None else _alm_options(args.alm),
+        cache=args.model_cache,
     )
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
@@ -304,9 +333,9 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     import json
 
     from ..experiments import zoo
+    from ..learn import TrainConfig
     from ..plot import demo_figure
     from ..scene import atomic_write_text
-    from ..training import TrainConfig
 
     names = args.scenarios.split(",") if args.scenarios else None
     cfg = TrainConfig(iterations=150) if args.quick else TrainConfig()
@@ -318,6 +347,7 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         jobs=args.jobs,
         energy_only=args.energy_only,
         device=args.device,
+        cache=args.model_cache,
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case, indent=1) + "\n")
@@ -376,8 +406,8 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     import json
 
     from ..experiments import tidy
+    from ..learn import TrainConfig
     from ..scene import atomic_write_text
-    from ..training import TrainConfig
 
     names = tuple(args.scenarios.split(",")) if args.scenarios else tidy.SCENARIOS
     if args.quick and not args.scenarios:
@@ -400,6 +430,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         log=log,
         device=args.device,
         jobs=args.jobs,
+        cache=args.model_cache,
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case(), indent=1) + "\n")

@@ -51,7 +51,7 @@ def _load(path: str, args: argparse.Namespace):
     return load_problem(path, device=device_of(args))
 
 
-def _warn_unused_options(path: str, options: dict, chains: list[str]) -> None:
+def warn_unused_options(path: str, options: dict, chains: list[str]) -> None:
     """Say on stderr which of the file's solver options the chosen chain(s) will not use."""
     import sys
 
@@ -71,7 +71,7 @@ def run_solve(args: argparse.Namespace) -> int:
     lp = _load(args.problem, args)
     solver = args.solver or lp.solver
     seed = lp.seed if args.seed < 0 else args.seed
-    _warn_unused_options(args.problem, lp.options, [solver])
+    warn_unused_options(args.problem, lp.options, [solver])
     if not args.quiet:
         print(f"solving {args.problem} with {solver} (seed {seed})")
     r = solve(lp.problem, solver, seed=seed, options=lp.options)
@@ -117,7 +117,7 @@ def run_compare(args: argparse.Namespace) -> int:
     solvers = _solver_list(args.solvers)
     if args.seeds < 1:
         raise UserError(f"--seeds: expected a number >= 1, got {args.seeds}")
-    _warn_unused_options(args.problem, lp.options, list(solvers))
+    warn_unused_options(args.problem, lp.options, list(solvers))
     cmp = compare(
         lp.problem,
         solvers,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..tidy import EFFORT
+    from ..tidying import EFFORT
     from . import add_common
 
     p = sub.add_parser(
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from ..models import load
     from ..plot import plot_tidy
     from ..scene import Scene
-    from ..tidy import tidy
+    from ..tidying import tidy
 
     reach = _reach(args.reach)
     model = load(args.model)

@@ -19,6 +19,7 @@ from .base import (
     cost_types,
     register_cost_type,
 )
+from .guide import Guide, Verdict
 from .symbolic import SymbolicProblem, register_casadi_form
 
 # Each module registers its YAML type on import; errors list the types in this order.
@@ -44,6 +45,7 @@ __all__ = [
     "CostSpec",
     "Displacement",
     "EffortTerm",
+    "Guide",
     "HingeCollision",
     "LearnedEnergy",
     "MoveCount",
@@ -53,6 +55,7 @@ __all__ = [
     "Sum",
     "SymbolicProblem",
     "TermValue",
+    "Verdict",
     "Violation",
     "as_sum",
     "cost_types",

@@ -11,7 +11,9 @@ rows in metres; their penalty is ``sum(relu(-g) ** power)`` and their violation 
 A cost is one class: its torch evaluation (``evaluate``), its constraint rows (``constraints``), its
 exact feasibility check (``check``: :class:`~scenescore.problem.Problem` asks every term), and, in the
 cost's own module, its CasADi form (:func:`scenescore.costs.symbolic.register_casadi_form`) and its YAML
-spec (:func:`register_cost_type`). See ``docs/extending.md``.
+spec (:func:`register_cost_type`). See ``docs/extending.md``. A term with an opinion on candidate poses
+beyond its value (it proposes some, doubts others: the learned energy) is also a
+:class:`~scenescore.costs.guide.Guide`.
 """
 
 from __future__ import annotations
@@ -134,23 +136,6 @@ class Cost:
     def check(self, poses: np.ndarray, tol: float) -> list[Violation]:
         """The exact check of one pose set ``(N, 3)``: what this term violates by more than ``tol``."""
         return []
-
-    def assess(self, poses: np.ndarray) -> dict[str, Any]:
-        """How far to trust the moving objects' poses ``(N, 3)`` by this term: ``name -> Assessment``
-        (only the learned energy has an opinion)."""
-        return {}
-
-    def untrusted(self, poses: Tensor) -> Tensor | None:
-        """Rows of ``poses (B, N, 3)`` that put a moving object where this term's data never had one of its
-        kind (the learned energy: at a bound none comes near, or far from the rest), ``(B,)`` bool;
-        None: no opinion. Solvers rank such rows after the others, before the cost."""
-        return None
-
-    def propose(self, x: Tensor, generator: torch.Generator) -> Tensor | None:
-        """Candidate poses: ``x (B, N, 3)`` with some moving objects put where this term expects them
-        (the learned energy: beside the scene's known objects, as its data has them), or None: no
-        proposal. Solvers screen such candidates beside uniform ones (``langevin``'s ``proposals``)."""
-        return None
 
     # -- binding ------------------------------------------------------------------------------------
     def model_device(self) -> torch.device | None:
@@ -418,19 +403,6 @@ class Sum(Cost):
         if not vs:
             return None
         return torch.stack(vs, dim=-1).max(-1).values
-
-    def untrusted(self, poses: Tensor) -> Tensor | None:
-        flags = [u for _, c in self.items if (u := c.untrusted(poses)) is not None]
-        if not flags:
-            return None
-        return torch.stack(flags, dim=-1).any(-1)
-
-    def propose(self, x: Tensor, generator: torch.Generator) -> Tensor | None:
-        out = None
-        for _, c in self.items:
-            y = c.propose(x if out is None else out, generator)
-            out = y if y is not None else out
-        return out
 
     @property
     def constraint_terms(self) -> list[ConstraintCost]:

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..exact import placed_core
+from ..exact import footprint_extent
 from ..geometry import support_extent
 from .base import (
     ConstraintCost,
@@ -110,8 +110,8 @@ class Bounds(ConstraintCost):
         out = []
         for i in self._idx:
             if self.footprint:
-                core, r = placed_core(objs[i], poses[i])  # (K, 2): the placed core's vertices
-                mn, mx = core.min(axis=0) - r, core.max(axis=0) + r
+                x0, y0, x1, y1 = footprint_extent(objs[i], poses[i])
+                mn, mx = np.array([x0, y0]), np.array([x1, y1])
             else:
                 mn = mx = np.asarray(poses[i][:2], dtype=float)
             v = float(max(np.max(lo - mn), np.max(mx - hi), 0.0))

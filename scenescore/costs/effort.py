@@ -30,7 +30,7 @@ from pydantic import Field
 from torch import Tensor
 
 from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
-from .symbolic import SymbolicProblem, register_casadi_form
+from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
 
 __all__ = [
     "EffortTerm",
@@ -264,8 +264,6 @@ def _effort_casadi(term: EffortTerm, weight: float, nlp: SymbolicProblem) -> Non
     elif isinstance(term, MoveCount):
         parts = [v / (v + term.sigma**2) for v in d2]
     else:  # a user's subclass: its torch form through a callback
-        from .symbolic import objective_by_torch
-
         objective_by_torch(term, weight, nlp)
         return
     nlp.add_objective(weight * sum(float(wk) * pk for wk, pk in zip(w, parts)))

@@ -18,19 +18,26 @@ from ..models.model import with_walls
 from ..models.trust import Assessment, assess, outside_data
 from ..scene import Scene
 from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .guide import Guide
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
 
 __all__ = ["LearnedEnergy", "EnergySpec"]
 
 
-class LearnedEnergy(Cost):
+class LearnedEnergy(Cost, Guide):
     """The trained energy ``E(poses | scene)``, conditioned on the bound scene's objects.
 
     ``objects``: the names the energy sees (default: all). Objects left out, such as clutter of a
     class the model never saw, are invisible to it and only enter through the other costs.
+
+    As a :class:`~scenescore.costs.guide.Guide` it judges poses by the model's trust reference
+    (:mod:`scenescore.models.trust`: the poses its training data has): it proposes poses beside the
+    scene's known objects, doubts pose sets that put a moving object where the data never had one of
+    its category, and gives each moving object a confidence (:class:`~scenescore.models.trust.Assessment`).
     """
 
     needs_scene = True
+    doubt_note = "put an object where its data has none (at a bound, or far from the rest)"
 
     def __init__(self, model: ScoreModel, name: str = "energy", objects: Sequence[str] | None = None):
         if not hasattr(model, "energy_fn"):
@@ -101,7 +108,7 @@ class LearnedEnergy(Cost):
         """The names of the movable objects that the energy sees."""
         return [self.binding.scene.names[i] for i in self.visible if self.binding.movable[i]]
 
-    def assess(self, poses: np.ndarray) -> dict[str, Assessment]:
+    def verdicts(self, poses: np.ndarray) -> dict[str, Assessment]:
         """Confidence and flags of the moving objects the energy sees, against the model's trust reference."""
         ref = self.model.trust
         if ref is None or self.visible_scene is None:
@@ -112,7 +119,7 @@ class LearnedEnergy(Cost):
         scene = self.visible_scene.with_poses(np.asarray(poses)[vis])
         return assess(ref, self.model, scene, moving)
 
-    def untrusted(self, poses: Tensor) -> Tensor | None:
+    def doubts(self, poses: Tensor) -> Tensor | None:
         """Rows that put a moving object the energy sees where the model's data never had one of its
         category: pinned at a bound none comes near, or farther from the others than any (the trust
         reference's ``bound`` and ``far`` flags); None without a reference or a moving object."""

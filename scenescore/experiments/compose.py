@@ -38,10 +38,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import torch
 
+from ..baselines import NeatNet, NeatNetConfig
+from ..learn import TrainConfig, train
 from ..scenarios.tv import TVScenario
 from ..scene import Scene, SceneError
-from ..training import TrainConfig
+from ..solvers import get, solve
 from ..workers import map_in_workers
 from .report import Row, format_table
 
@@ -104,16 +107,19 @@ class ComposeResult:
 
 
 def train_energy(
-    scenes: list[Scene], seed: int, quick: bool = False, progress: bool = False, device: Any = None
+    scenes: list[Scene],
+    seed: int,
+    quick: bool = False,
+    progress: bool = False,
+    device: Any = None,
+    cache: Any = None,
 ) -> ScoreModel:
     """The experiment's energy, trained on ``scenes`` (on ``device``): every counter-example chain moves
     every object, as the sampler does here; the library's default network (its edge encoder and noise
     on every node input). Without the encoder (``RAW_EDGES``, the network Fig. 4 was first measured
     with) seed 1's samples spread beyond the alignment tolerance: 2440 to 4459 correct of 5000 per
-    level, against 4649 to 5000 with it."""
-    from ..training import train
-
-    return train(scenes, train_config(quick), seed=seed, progress=progress, device=device)
+    level, against 4649 to 5000 with it. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
+    return train(scenes, train_config(quick), seed=seed, progress=progress, device=device, cache=cache)
 
 
 def train_config(quick: bool = False) -> TrainConfig:
@@ -142,7 +148,7 @@ def langevin_options(particles: int) -> dict[str, float]:
     return {"particles": particles, "steps": 100, "resample": 3, "temperature": 1.0}
 
 
-def _correct(scenario: TVScenario, scene, poses: np.ndarray) -> tuple[int, int]:
+def correct_samples(scenario: TVScenario, scene, poses: np.ndarray) -> tuple[int, int]:
     """Correct samples among ``poses (S, N, 3)``, and how many of them are distinct at 1 cm."""
     poses = np.asarray(poses)
     ok = poses[scenario.correct_many(scene, poses)]
@@ -164,12 +170,13 @@ def run(
     device: Any = None,
     jobs: int = 1,
     refine_options: dict[str, Any] | None = None,
+    cache: Any = None,
 ) -> ComposeResult:
     """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level;
     SceneScore's model and problems on ``device`` (NeatNet on the CPU). ``jobs > 1`` runs the seeds in
     that many worker processes of one thread each (the counts do not depend on it; seconds are summed
     over the workers). ``refine_options``: the :data:`BATCHED` row's ``alm`` options (default
-    :data:`REFINE`)."""
+    :data:`REFINE`). ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -195,6 +202,7 @@ def run(
         bars=progress and jobs == 1,
         device=device,
         refine_options=res.refine_options,
+        cache=cache,
     )
     for counts, uniq, seconds in map_in_workers(
         one, list(range(seeds)), jobs, log, "Fig. 4 seeds" if progress else None
@@ -219,30 +227,14 @@ def _seed(
     bars: bool,
     device: Any,
     refine_options: dict[str, Any],
+    cache: Any = None,
 ) -> tuple[dict[str, list[float]], dict[str, list[float]], dict[str, float]]:
     """One seed of :func:`run`: per method, correct and distinct correct samples per clutter level, and
     seconds (``progress``: a log line per level; ``bars``: training's progress bar)."""
-    import torch
-
-    from ..baselines import NeatNet, NeatNetConfig
-    from ..solvers import get, solve
-
     scenario = TVScenario()
-    seconds: dict[str, float] = {}
-    ss_methods = [m for m in chosen if m != "NeatNet"]
     train_s, test_s = scenario.split(seed)
-    model = None
-    if ss_methods:
-        t0 = time.perf_counter()
-        model = train_energy(train_s, seed, quick, bars, device)
-        dt = time.perf_counter() - t0
-        for m in ss_methods:
-            seconds[m] = seconds.get(m, 0.0) + dt
-    nn = None
-    if "NeatNet" in chosen:
-        t0 = time.perf_counter()
-        nn = NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)).fit(train_s, seed)
-        seconds["NeatNet"] = seconds.get("NeatNet", 0.0) + time.perf_counter() - t0
+    methods = _Methods.trained(chosen, train_s, seed, quick, bars, device, cache)
+    methods.per_scene, methods.k_refine, methods.refine_options = per_scene, k_refine, refine_options
     counts: dict[str, list[float]] = {m: [] for m in chosen}
     uniq: dict[str, list[float]] = {m: [] for m in chosen}
     for n in levels:
@@ -250,46 +242,7 @@ def _seed(
         dis = dict.fromkeys(chosen, 0.0)
         for k in range(n_scenes):
             scene = scenario.clutter(test_s[k % len(test_s)], n, seed=1000 * seed + 10 * n + k)
-            if nn is not None:
-                t0 = time.perf_counter()
-                c, d = _correct(scenario, scene, nn.sample(scene, per_scene, seed=k))
-                got["NeatNet"] += c
-                dis["NeatNet"] += d
-                seconds["NeatNet"] += time.perf_counter() - t0
-            if model is None:
-                continue
-            prob = tv_problem(scene, model)
-            t0 = time.perf_counter()
-            r = solve(prob, "langevin", seed=k, options={"langevin": langevin_options(per_scene)})
-            t_lan = time.perf_counter() - t0
-            for m in ss_methods:
-                seconds[m] += t_lan
-            if "SceneScore" in chosen:
-                assert r.samples is not None
-                c, d = _correct(scenario, scene, r.samples)
-                got["SceneScore"] += c
-                dis["SceneScore"] += d
-            if BATCHED in chosen:
-                t0 = time.perf_counter()
-                assert r.samples is not None
-                rr = get("alm", **refine_options).solve(prob, init=torch.as_tensor(r.samples))
-                seconds[BATCHED] += time.perf_counter() - t0
-                assert rr.samples is not None
-                c, d = _correct(scenario, scene, rr.samples)
-                got[BATCHED] += c
-                dis[BATCHED] += d
-            for m, stage in CHAINS.items():
-                if m not in chosen:
-                    continue
-                solver = get(stage)
-                t0 = time.perf_counter()
-                assert r.samples is not None
-                refined = [
-                    solver.solve(prob, init=torch.as_tensor(r.samples[j]), seed=j).poses
-                    for j in range(min(k_refine, len(r.samples)))
-                ]
-                seconds[m] += time.perf_counter() - t0
-                c, d = _correct(scenario, scene, np.asarray(refined))
+            for m, (c, d) in methods.score(scenario, scene, k).items():
                 got[m] += c
                 dis[m] += d
         for m in chosen:
@@ -297,7 +250,94 @@ def _seed(
             uniq[m].append(dis[m])
         if progress:
             log(f"seed {seed} clutter {n}: " + ", ".join(f"{m} {counts[m][-1]:.0f}" for m in chosen))
-    return counts, uniq, seconds
+    return counts, uniq, methods.seconds
+
+
+@dataclass
+class _Methods:
+    """The methods of one seed, trained, and the seconds each has taken so far (training included)."""
+
+    chosen: list[str]
+    model: ScoreModel | None
+    neatnet: Any
+    seconds: dict[str, float]
+    per_scene: int = 0
+    k_refine: int = 0
+    refine_options: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def trained(
+        cls,
+        chosen: list[str],
+        train_s: list[Scene],
+        seed: int,
+        quick: bool,
+        bars: bool,
+        device: Any,
+        cache: Any,
+    ) -> _Methods:
+        """Train the energy (once, for every SceneScore method) and NeatNet, as ``chosen`` needs them."""
+        seconds: dict[str, float] = {}
+        ss_methods = [m for m in chosen if m != "NeatNet"]
+        model = None
+        if ss_methods:
+            t0 = time.perf_counter()
+            model = train_energy(train_s, seed, quick, bars, device, cache)
+            dt = time.perf_counter() - t0
+            for m in ss_methods:
+                seconds[m] = seconds.get(m, 0.0) + dt
+        nn = None
+        if "NeatNet" in chosen:
+            t0 = time.perf_counter()
+            nn = NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)).fit(train_s, seed)
+            seconds["NeatNet"] = seconds.get("NeatNet", 0.0) + time.perf_counter() - t0
+        return cls(chosen, model, nn, seconds)
+
+    def score(self, scenario: TVScenario, scene: Scene, k: int) -> dict[str, tuple[float, float]]:
+        """Correct and distinct correct samples of each method on test scene ``k`` (its seeds are ``k``)."""
+        chosen, seconds = self.chosen, self.seconds
+        out: dict[str, tuple[float, float]] = {}
+        if self.neatnet is not None:
+            t0 = time.perf_counter()
+            out["NeatNet"] = correct_samples(
+                scenario, scene, self.neatnet.sample(scene, self.per_scene, seed=k)
+            )
+            seconds["NeatNet"] += time.perf_counter() - t0
+        if self.model is None:
+            return out
+        prob = tv_problem(scene, self.model)
+        t0 = time.perf_counter()
+        r = solve(prob, "langevin", seed=k, options={"langevin": langevin_options(self.per_scene)})
+        t_lan = time.perf_counter() - t0
+        for m in chosen:
+            if m != "NeatNet":
+                seconds[m] += t_lan
+        assert r.samples is not None
+        if "SceneScore" in chosen:
+            out["SceneScore"] = correct_samples(scenario, scene, r.samples)
+        if BATCHED in chosen:
+            t0 = time.perf_counter()
+            rr = get("alm", **self.refine_options).solve(prob, init=torch.as_tensor(r.samples))
+            seconds[BATCHED] += time.perf_counter() - t0
+            assert rr.samples is not None
+            out[BATCHED] = correct_samples(scenario, scene, rr.samples)
+        for m, stage in CHAINS.items():
+            if m in chosen:
+                out[m] = self._refined_one_by_one(m, stage, prob, r.samples, scenario, scene)
+        return out
+
+    def _refined_one_by_one(
+        self, m: str, stage: str, prob: Problem, samples: np.ndarray, scenario: TVScenario, scene: Scene
+    ) -> tuple[float, float]:
+        """Method ``m``: the first ``k_refine`` samples refined one at a time by the solver ``stage``."""
+        solver = get(stage)
+        t0 = time.perf_counter()
+        refined = [
+            solver.solve(prob, init=torch.as_tensor(samples[j]), seed=j).poses
+            for j in range(min(self.k_refine, len(samples)))
+        ]
+        self.seconds[m] += time.perf_counter() - t0
+        return correct_samples(scenario, scene, np.asarray(refined))
 
 
 def format_compose(res: ComposeResult) -> str:

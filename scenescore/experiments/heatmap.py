@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 
 from ..heatmap import energy_grid, grid_minimum
+from ..learn import TrainConfig, train
 from ..plot import draw_heatmap
 from ..scenarios import DeskScenario
-from ..training import TrainConfig, train
 from .report import Row, format_table, over_seeds
 
 __all__ = ["run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES"]
@@ -61,9 +61,10 @@ def run(
     n_train: int | None = None,
     iterations: int | None = None,
     device: Any = None,
+    cache: Any = None,
 ) -> HeatmapResult:
-    """Train on desk scenes per seed (on ``device``), measure the minima; PNGs (seed 0) under ``out``
-    when given."""
+    """Train on desk scenes per seed (on ``device``; ``cache``: a model cache folder, see
+    :mod:`scenescore.learn.cache`), measure the minima; PNGs (seed 0) under ``out`` when given."""
     sc = DeskScenario()
     res = HeatmapResult()
     t0 = time.perf_counter()
@@ -72,7 +73,7 @@ def run(
         if n_train is not None:
             train_s = train_s[:n_train]
         tc = TrainConfig(iterations=iterations or (60 if quick else TrainConfig().iterations))
-        model = train(train_s, tc, seed=seed, progress=progress, device=device)
+        model = train(train_s, tc, seed=seed, progress=progress, device=device, cache=cache)
         figs: dict[str, float] = {}
         minima: dict[tuple[str, float], tuple[float, float]] = {}
         for tool in ("pen", "pencil"):

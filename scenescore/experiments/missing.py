@@ -10,15 +10,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from functools import partial
 from typing import Any
 
 from ..encoders import Encoder
 from ..evaluation import MissingCase, OraclePlacer, make_cases, score_cases
+from ..learn import RAW_EDGES, TrainConfig
 from ..placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
 from ..scene import Scene, SceneError
-from ..training import RAW_EDGES, TrainConfig
 from ..workers import map_in_workers
 from .report import SeedResults, format_table
 
@@ -34,15 +35,16 @@ PAPER: dict[str, dict[str, float]] = {
 
 
 def _methods(
-    scenario: DiningScenario, quick: bool, encoder: Encoder | None, device: Any = None
+    scenario: DiningScenario, quick: bool, encoder: Encoder | None, device: Any = None, cache: Any = None
 ) -> dict[str, Callable[[], Placer]]:
     from ..baselines import NearestNeighbour, NeatNet, NeatNetConfig
 
     tc = TrainConfig(iterations=150) if quick else TrainConfig()
 
-    def scenescore(name: str, train: Mapping[str, Any] | None = None, **model: Any) -> SceneScorePlacer:
-        cfg = TrainConfig(**{**tc.to_dict(), **(train or {}), "model": {**tc.model, **model}})
-        return SceneScorePlacer(name, cfg, encoder=encoder, device=device)
+    def scenescore(name: str, train: Mapping[str, Any] | None = None, **network: Any) -> SceneScorePlacer:
+        net = replace(tc.network, **network)
+        cfg = TrainConfig(**{**tc.to_dict(), **(train or {}), "network": net})
+        return SceneScorePlacer(name, cfg, encoder=encoder, device=device, cache=cache)
 
     return {
         "NeatNet": lambda: NeatNet(config=NeatNetConfig(iterations=200 if quick else 1500)),
@@ -91,11 +93,13 @@ def run(
     encoder: Encoder | None = None,
     device: Any = None,
     jobs: int = 1,
+    cache: Any = None,
 ) -> MissingResult:
     """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs;
     ``device``: where SceneScore's models train and place (the baselines stay on the CPU). ``jobs > 1``
     runs each method on each seed in one of that many worker processes of one thread each (the figures
-    do not depend on it); with ``scenes_fn`` (a function of this process) they run here, in turn."""
+    do not depend on it); with ``scenes_fn`` (a function of this process) they run here, in turn.
+    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
     table = _methods(DiningScenario(), quick, encoder, device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]
@@ -108,6 +112,7 @@ def run(
         scenes_fn=scenes_fn,
         encoder=encoder,
         device=device,
+        cache=cache,
         graphs={},
     )
     tasks = [(seed, m) for seed in range(seeds) for m in chosen]
@@ -131,6 +136,7 @@ def _one(
     scenes_fn: Callable[[list[Scene], list[Scene]], tuple[list[Scene], list[Scene]]] | None,
     encoder: Encoder | None,
     device: Any,
+    cache: Any,
     graphs: dict[int, tuple[list[Scene], list[Scene]]],
 ) -> tuple[dict[str, float], float]:
     """One method on one seed of :func:`run`: its figures and seconds (``graphs``: each seed's scenes
@@ -147,7 +153,9 @@ def _one(
     # the truth is always the simulator's pose, whatever graph the method sees
     for c, tc in zip(cases, truth_cases):
         c.truth = tc.truth
-    pred, dt = fit_predict(_methods(scenario, quick, encoder, device)[m], train_s, cases, seed, progress)
+    pred, dt = fit_predict(
+        _methods(scenario, quick, encoder, device, cache)[m], train_s, cases, seed, progress
+    )
     figs = score_cases(cases, pred, scenario.symmetric)
     log(
         f"seed {seed} {m:24s} mean t {figs['mean_t_cm']:.2f} cm  R {figs['mean_R_deg']:.1f} deg  ({dt:.0f} s)"

@@ -23,11 +23,11 @@ import numpy as np
 
 from ..encoders import Encoder
 from ..evaluation import MissingCase, OraclePlacer, make_cases
+from ..learn import TrainConfig
 from ..placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
-from ..training import TrainConfig
 from ..workers import map_in_workers
 from .missing import fit_predict
 from .report import Row, SeedResults, format_table
@@ -58,7 +58,11 @@ def scenescore_row(encoder: Encoder) -> str:
 
 
 def _methods(
-    scenario: OrderingScenario, quick: bool, encoders: Sequence[Encoder] | None = None, device: Any = None
+    scenario: OrderingScenario,
+    quick: bool,
+    encoders: Sequence[Encoder] | None = None,
+    device: Any = None,
+    cache: Any = None,
 ) -> dict[str, Callable[[], Placer]]:
     tc = TrainConfig(iterations=60) if quick else TrainConfig()
 
@@ -68,12 +72,12 @@ def _methods(
         return NeatNetR(epochs=50 if quick else 1500)
 
     def scenescore(enc: Encoder) -> Callable[[], Placer]:
-        return lambda: SceneScorePlacer(scenescore_row(enc), tc, encoder=enc, device=device)
+        return lambda: SceneScorePlacer(scenescore_row(enc), tc, encoder=enc, device=device, cache=cache)
 
     scenescore_rows: dict[str, Callable[[], Placer]] = (
         {scenescore_row(e): scenescore(e) for e in encoders}
         if encoders
-        else {"SceneScore": lambda: SceneScorePlacer("SceneScore", tc, device=device)}
+        else {"SceneScore": lambda: SceneScorePlacer("SceneScore", tc, device=device, cache=cache)}
     )
     return {"NeatNet-R": neatnet_r, **scenescore_rows, "Oracle": lambda: OraclePlacer(scenario)}
 
@@ -173,6 +177,7 @@ def run(
     scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None = None,
     device: Any = None,
     jobs: int = 1,
+    cache: Any = None,
     **scenario: Any,
 ) -> NovelResult:
     """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests.
@@ -183,7 +188,7 @@ def run(
     ``device``: where SceneScore's models train and place (the baselines stay on the CPU).
     ``jobs > 1`` runs each method on each seed and rule in one of that many worker processes of one
     thread each (the figures do not depend on it); with ``encoders`` or ``scenes_fn`` (objects of this
-    process) they run here, in turn.
+    process) they run here, in turn. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`).
     """
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
@@ -202,6 +207,7 @@ def run(
         encoders=encoders,
         scenes_fn=scenes_fn,
         device=device,
+        cache=cache,
         scenario=scenario,
         graphs={},
     )
@@ -228,6 +234,7 @@ def _one(
     encoders: Sequence[Encoder] | None,
     scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None,
     device: Any,
+    cache: Any,
     scenario: dict[str, Any],
     graphs: dict[tuple[int, str, int], tuple[list[Scene], list[MissingCase]]],
 ) -> tuple[float, float]:
@@ -247,7 +254,7 @@ def _one(
                 scenes_fn(train_s, test_s, encoders[k]), cases, sc.missing
             )
         train_m, cases_m = graphs[(seed, rule, k)]
-    pred, dt = fit_predict(_methods(sc, quick, encoders, device)[m], train_m, cases_m, seed, progress)
+    pred, dt = fit_predict(_methods(sc, quick, encoders, device, cache)[m], train_m, cases_m, seed, progress)
     err = position_error_cm(cases_m, pred)
     log(f"seed {seed} {rule:13s} {m:12s} {err:6.2f} cm  ({dt:.0f} s)")
     return err, dt

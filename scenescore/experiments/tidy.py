@@ -6,7 +6,7 @@ a fraction of the bounds' half-extent in a random direction and turned, or two o
 kinds swapped), keeping only messy scenes that are collision-free, inside the bounds and *rejected* by
 the scenario's check. Then, per method:
 
-- ``tidy (effort W)``: :func:`scenescore.tidy.tidy` at each effort weight;
+- ``tidy (effort W)``: :func:`scenescore.tidying.tidy` at each effort weight;
 - ``re-place all``: every movable object placed from scratch by the sampler, no effort term;
 - ``missing placement``: the displaced objects (an oracle says which) placed by ``place``.
 
@@ -30,14 +30,14 @@ from typing import Any, cast
 import numpy as np
 
 from ..costs import Bounds, Displacement, HingeCollision
+from ..learn import TrainConfig, train
 from ..models import ScoreModel
 from ..placement import place_many
 from ..problem import Problem
 from ..scenarios import get
 from ..scene import Scene, SceneError, wrap_angle
 from ..solvers.langevin import LangevinOptions
-from ..tidy import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
-from ..training import TrainConfig, train
+from ..tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
 from ..workers import map_in_workers
 from .report import Row, format_table
 
@@ -314,12 +314,14 @@ def run(
     place_options: LangevinOptions | None = None,
     device: Any = None,
     jobs: int = 1,
+    cache: Any = None,
 ) -> TidyRun:
     """Train per scenario and seed of ``seeds`` (on ``device``; each seed its own split, model and
     displacements), make the messy cases, run every method on them (``options``: tidy's,
     ``place_options``: the baselines' placement; defaults: the library's); the cases of every seed are
     pooled. ``jobs > 1`` runs the scenario and seed pairs in that many worker processes of one thread
-    each (the figures do not depend on it; each method's seconds are then summed over the workers)."""
+    each (the figures do not depend on it; each method's seconds are then summed over the workers).
+    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise SceneError(f"tidy experiment: jobs must be a whole number >= 1, got {jobs!r}")
     seeds = list(seeds)
@@ -337,6 +339,7 @@ def run(
         place_options=place_options,
         device=device,
         progress=progress and jobs == 1,
+        cache=cache,
     )
     units = [(name, s) for name in scenarios for s in seeds]
     parts = map_in_workers(one, units, jobs, log, "tidy" if progress else None)
@@ -360,6 +363,7 @@ def run_scenario(
     device: Any,
     log: Callable[[str], None] = print,
     progress: bool = False,
+    cache: Any = None,
 ) -> TidyRun:
     """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds."""
     name, seed = unit
@@ -371,7 +375,7 @@ def run_scenario(
     sc = get(name)
     t0 = time.perf_counter()
     train_s, test_s = sc.split(seed)
-    model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device)
+    model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device, cache=cache)
     held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
     gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
     cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)

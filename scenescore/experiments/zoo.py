@@ -23,6 +23,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..evaluation import MissingCase, case_errors
+from ..learn import TrainConfig, split_validation, train
 from ..models import ScoreModel
 from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
 from ..placement import covering, place_many
@@ -30,7 +31,6 @@ from ..scenarios import get
 from ..scenarios.zoo import ZOO
 from ..scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
-from ..training import TrainConfig, split_validation, train
 from ..workers import map_in_workers
 from .report import Row, format_table
 
@@ -144,6 +144,7 @@ def run_one(
     device: Any = None,
     place: LangevinOptions | None = None,
     val: float = 0.0,
+    cache: Any = None,
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
     the learned energy alone, the paper's protocol; ``place``: placement options instead of
@@ -151,13 +152,20 @@ def run_one(
     ``device``; ``val``: the fraction of the training scenes held out for validation, as ``scenescore
     train --val`` (default none: the 48 training scenes are the trust reference; holding out train's
     15% left two zoo-bedroom nightstands 84 and 93 cm off, where training on all 48 left none over
-    25 cm); ``{"cases", "worst", "seconds"}``."""
+    25 cm); ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``{"cases", "worst",
+    "seconds"}``."""
     t0 = time.perf_counter()
     sc = get(name)
     train_s, test_s = sc.split(seed)
     train_s, held = split_validation(train_s, val, seed=seed)
     model = train(
-        train_s, config or TrainConfig(), seed=seed, progress=progress, device=device, validation=held
+        train_s,
+        config or TrainConfig(),
+        seed=seed,
+        progress=progress,
+        device=device,
+        validation=held,
+        cache=cache,
     )
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
@@ -209,10 +217,11 @@ def _pair(
     device: Any,
     place: LangevinOptions | None,
     val: float,
+    cache: Any,
 ) -> dict[str, Any]:
     """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done."""
     name, seed = task
-    one = run_one(name, seed, config, progress, energy_only, device, place, val)
+    one = run_one(name, seed, config, progress, energy_only, device, place, val, cache)
     got = one["cases"]
     log(
         f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
@@ -233,10 +242,11 @@ def run(
     device: Any = None,
     place: LangevinOptions | None = None,
     val: float = 0.0,
+    cache: Any = None,
 ) -> ZooResult:
     """The zoo table over ``seeds`` seeds (``config``: the training settings; default the CLI's;
     ``device``: where the models train and place; ``place``: placement options; ``val``: the validation
-    fraction held out of the training scenes; :func:`run_one`).
+    fraction held out of the training scenes; ``cache``: a model cache folder; :func:`run_one`).
 
     ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
     largest scenarios first; each pair's figures do not depend on ``jobs``.
@@ -258,6 +268,7 @@ def run(
         device=device,
         place=place,
         val=val,
+        cache=cache,
     )
     done = dict(zip(tasks, map_in_workers(pair, tasks, jobs, log, "zoo" if progress else None)))
     res = ZooResult()

@@ -2,6 +2,7 @@
 
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import FORMAT_VERSION, CheckpointError
+from .info import ModelInfo, TidyCalibration
 from .model import ScoreModel, load
 from .network import EnergyConfig, EnergyNet, edge_features
 
@@ -11,6 +12,8 @@ __all__ = [
     "edge_features",
     "CheckpointError",
     "FORMAT_VERSION",
+    "ModelInfo",
+    "TidyCalibration",
     "ScoreModel",
     "SceneTensors",
     "batch_scenes",

@@ -16,6 +16,7 @@ from ..memory import check as check_memory
 from ..scene import Scene
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from .info import ModelInfo
 from .network import EnergyConfig, EnergyNet, parameter_count
 from .trust import TrustReference
 
@@ -28,12 +29,11 @@ class ScoreModel(nn.Module):
     The model's device (``model.to(device)``, or ``load(path, device=...)``) is where its scenes are
     encoded to and where the problems built on it run (see :mod:`scenescore.devices`)."""
 
-    def __init__(self, net: EnergyNet, encoder: Encoder, info: dict[str, Any] | None = None):
+    def __init__(self, net: EnergyNet, encoder: Encoder, info: ModelInfo | None = None):
         super().__init__()
         self.net = net
         self.encoder = encoder
-        self.info: dict[str, Any] = dict(info or {})
-        self._trust_read: tuple[dict[str, Any], TrustReference] | None = None  # see ``trust``
+        self.info = info if info is not None else ModelInfo()  # what training recorded (the checkpoint's)
 
     @classmethod
     def create(cls, encoder: Encoder, **config: Any) -> ScoreModel:
@@ -42,15 +42,8 @@ class ScoreModel(nn.Module):
 
     @property
     def trust(self) -> TrustReference | None:
-        """What placements are judged against (stored by training), or None for older checkpoints; read
-        once per ``info["trust"]`` dict (tidying asks for it hundreds of times; assign a new dict to
-        change it, as training does)."""
-        d = self.info.get("trust")
-        if not isinstance(d, dict):
-            return None
-        if self._trust_read is None or self._trust_read[0] is not d:
-            self._trust_read = (d, TrustReference.from_dict(d))
-        return self._trust_read[1]
+        """What placements are judged against (stored by training), or None for older checkpoints."""
+        return self.info.trust
 
     @property
     def config(self) -> EnergyConfig:
@@ -106,7 +99,7 @@ class ScoreModel(nn.Module):
             self.net.state_dict(),
             self.net.cfg.to_dict(),
             {"name": self.encoder.name, "config": self.encoder.config()},
-            self.info,
+            self.info.to_dict(),
         )
 
 
@@ -172,9 +165,8 @@ def load(
     except RuntimeError as e:
         raise CheckpointError(f"{path}: weights do not match the stored config: {e}") from None
     net.to(dev).eval()
-    if "trust" in ck.info:
-        try:
-            TrustReference.from_dict(ck.info["trust"])
-        except ValueError as e:
-            raise CheckpointError(f"{path}: checkpoint metadata is damaged: info.trust: {e}") from None
-    return ScoreModel(net, encoder, ck.info)
+    try:
+        info = ModelInfo.from_dict(ck.info)
+    except ValueError as e:  # a damaged trust reference, named
+        raise CheckpointError(f"{path}: checkpoint metadata is damaged: {e}") from None
+    return ScoreModel(net, encoder, info)

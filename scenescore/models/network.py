@@ -210,7 +210,7 @@ def edge_features(
     return torch.stack([ux, uy, cd, sd], dim=-1)
 
 
-class _MessageLayer(nn.Module):
+class MessageLayer(nn.Module):
     """``v_i' = act(sum_{j != i} f(v_i, v_j, e_ji))`` with the first linear of ``f`` split per part."""
 
     def __init__(self, d_in: int, d_edge: int, hidden: int, message: str, act: nn.Module, edge_hidden: int):
@@ -260,7 +260,7 @@ class EnergyNet(nn.Module):
             self.edge_enc = None
         dims = [d_node] + [cfg.hidden] * cfg.layers
         self.layers = nn.ModuleList(
-            _MessageLayer(dims[k], d_edge, cfg.hidden, cfg.message, act, cfg.edge_hidden or cfg.hidden)
+            MessageLayer(dims[k], d_edge, cfg.hidden, cfg.message, act, cfg.edge_hidden or cfg.hidden)
             for k in range(cfg.layers)
         )
         self.head = nn.Sequential(

@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..geometry import footprint_core, relative_poses
+from ..exact import collides, footprint_extents
+from ..geometry import relative_poses
 from ..scene import Scene, SceneObject, wrap_angle
 
 __all__ = [
@@ -235,19 +236,10 @@ def _nearest(poses: np.ndarray) -> np.ndarray:
     return d.min(axis=1)
 
 
-def _extents(obj: SceneObject, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The axis-aligned extent ``lo, hi (B, 2)`` of ``obj``'s footprint at each pose of ``poses (B, 3)``."""
-    core, r = footprint_core(obj)
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    rot = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)  # (B, 2, 2): row-vector rotation
-    pts = core[None] @ rot + poses[:, None, :2]  # (B, K, 2)
-    return pts.min(1) - r, pts.max(1) + r
-
-
 def _side_gaps(obj: SceneObject, poses: np.ndarray, bounds: Any) -> np.ndarray:
     """How far ``obj``'s footprint keeps from each side of ``bounds`` (``x >= x0``, ``y >= y0``, ``x <= x1``,
     ``y <= y1``) at each pose of ``poses (B, 3)``: ``(B, 4)`` metres, negative beyond the side."""
-    lo, hi = _extents(obj, poses)
+    lo, hi = footprint_extents(obj, poses)
     (x0, y0), (x1, y1) = bounds
     return np.stack([lo[:, 0] - x0, lo[:, 1] - y0, x1 - hi[:, 0], y1 - hi[:, 1]], 1)
 
@@ -294,8 +286,6 @@ def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses:
 def overlapping_categories(scenes: Sequence[Scene], tol: float) -> list[list[str]]:
     """Sorted category pairs ``[a, b]`` whose footprints overlap by more than ``tol`` metres of
     penetration in some scene (exact, shapely; pairs whose bounding circles are apart are skipped)."""
-    from ..exact import collides
-
     found: set[tuple[str, str]] = set()
     for s in scenes:
         p = s.poses()

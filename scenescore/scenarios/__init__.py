@@ -10,6 +10,7 @@ from .desk import DeskScenario
 from .dining import DiningScenario
 from .ordering import OrderingScenario
 from .tv import TVScenario
+from .zoo import SCENARIOS as ZOO_SCENARIOS
 from .zoo import (
     ZOO,
     BanquetScenario,
@@ -65,16 +66,7 @@ _REGISTRY: dict[str, Callable[..., Any]] = {
     "ordering": OrderingScenario,
     "tv": TVScenario,
     "desk": DeskScenario,
-    "zoo-pcb": PcbScenario,
-    "zoo-jars": JarGridScenario,
-    "zoo-bedroom": BedroomScenario,
-    "zoo-banquet": BanquetScenario,
-    "zoo-workstation": WorkstationScenario,
-    "zoo-garden": GardenScenario,
-    "zoo-cascade": CascadeScenario,
-    "zoo-books": BookshelfScenario,
-    "zoo-lounge": LoungeScenario,
-    "zoo-hall": HallScenario,
+    **ZOO_SCENARIOS,
 }
 
 

@@ -16,6 +16,7 @@ from typing import cast
 
 import numpy as np
 
+from ..exact import collides
 from ..scene import Scene, SceneError, SceneObject, wrap_angle
 
 __all__ = ["TVScenario", "TV_CATALOGUE"]
@@ -81,16 +82,12 @@ class TVScenario:
     def clutter(self, scene: Scene, n: int, seed: int, keep: bool = False) -> Scene:
         """``scene`` with ``n`` fixed clutter boxes at random, not overlapping each other; the
         television and speakers lose their poses unless ``keep``."""
-        from shapely.affinity import rotate, translate
-        from shapely.geometry import box
-
         rng = np.random.default_rng(seed)
         objs = [o for o in scene.copy().objects if o.category != "clutter"]
         if not keep:
             for o in objs:
                 o.pose = None
-        size = TV_CATALOGUE["clutter"][0]
-        placed: list = []
+        placed: list[SceneObject] = []
         tries = 0
         while len(placed) < n:
             tries += 1
@@ -98,15 +95,12 @@ class TVScenario:
                 raise SceneError(f"clutter: could not place {n} boxes without overlap")
             x, y = rng.uniform(-self.room + 0.3, self.room - 0.3, 2)
             th = rng.uniform(-math.pi, math.pi)
-            poly = translate(
-                rotate(box(-size[0] / 2, -size[1] / 2, size[0] / 2, size[1] / 2), th, use_radians=True), x, y
-            )
-            if any(poly.intersects(p) for p in placed):
+            pose = (float(x), float(y), float(th))
+            box = self._obj(f"clutter_{len(placed)}", "clutter", pose, True)
+            if any(collides(box, pose, p, cast(tuple[float, float, float], p.pose)) for p in placed):
                 continue
-            placed.append(poly)
-            objs.append(
-                self._obj(f"clutter_{len(placed) - 1}", "clutter", (float(x), float(y), float(th)), True)
-            )
+            placed.append(box)
+            objs.append(box)
         return Scene(objs, scene.bounds, meta={**scene.meta, "clutter": n})
 
     def aligned(self, scene: Scene) -> bool:

@@ -2,14 +2,14 @@
 
 Particles start uniformly inside the bounds, the best ``particles`` of ``candidates`` uniform draws
 by cost when ``candidates`` is set, or from ``init``; with ``proposals``, that fraction of the draws
-is proposed by the cost's terms instead (the learned energy: poses beside the known objects that its
-data has); every step is followed by the
+is proposed by the cost's guiding terms instead (:mod:`scenescore.costs.guide`; the learned energy:
+poses beside the known objects that its data has); every step is followed by the
 closed-form projections of the cost's constraints (bounds with the footprint's extent, reach) and,
 with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
 is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost;
-with ``trusted_first`` (placement's default), in each group a particle that puts an object where its
-learned energy's data never had one (at a bound none comes near, or far from the rest:
-:meth:`~scenescore.problem.Problem.untrusted`) comes after those that do not.
+with ``trusted_first`` (placement's default), in each group a particle that a guiding term doubts
+(:meth:`~scenescore.problem.Problem.doubted`; the learned energy: one that puts an object where its
+data never had one, at a bound none comes near or far from the rest) comes after those it does not.
 
 With ``resample=k`` the particles are a population: ``k`` times during the chain they are resampled
 by ``softmax(-cost / temperature)``, so particles stuck in high-cost basins are replaced by copies of
@@ -20,7 +20,7 @@ distinct.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
@@ -29,6 +29,7 @@ import torch
 from torch import Tensor
 
 from ..costs.base import stack_sums
+from ..costs.guide import doubt_note
 from ..devices import generator
 from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
@@ -60,16 +61,16 @@ class LangevinOptions:
 
     particles: int = 64
     candidates: int = 0  # uniform draws screened by cost (forward only) for the particles' start; 0: none
-    # the fraction of the start's draws that the cost's terms propose instead of uniform ones (the
-    # learned energy: its data's poses relative to the scene's known objects; Problem.initial)
+    # the fraction of the start's draws that the cost's guiding terms propose instead of uniform ones
+    # (the learned energy: its data's poses relative to the scene's known objects; Problem.initial)
     proposals: float = 0.0
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
     threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
     chain: LangevinConfig = SAMPLING
-    # the answer: among the feasible particles (else all), those that the learned energy's data supports
-    # first (Problem.untrusted: no object at a bound its category never comes near, or farther from the rest
-    # than any of its category), then by cost; placement's default (off for solve: a user's own costs
-    # may well ask for a wall)
+    # the answer: among the feasible particles (else all), those that no guiding term doubts first
+    # (Problem.doubted; the learned energy: no object at a bound its category never comes near, or
+    # farther from the rest than any of its category), then by cost; placement's default (off for
+    # solve: a user's own costs may well ask for a wall)
     trusted_first: bool = False
 
     def __post_init__(self) -> None:
@@ -88,13 +89,18 @@ class LangevinOptions:
             raise ConfigError(f"langevin: chain: expected a LangevinConfig, got {type(self.chain).__name__}")
 
     @classmethod
+    def flat_names(cls) -> set[str]:
+        """The option names given flat (YAML, ``ss.solve``): the solver's own and the schedule's."""
+        return ({f.name for f in fields(cls)} - {"chain"}) | {f.name for f in fields(LangevinConfig)}
+
+    @classmethod
     def from_flat(cls, **options: Any) -> LangevinOptions:
         """Options given flat: the schedule's fields (``steps``, ``step_init``, ...) go into ``chain``."""
         own = {f.name for f in fields(cls)}
         sched = {f.name for f in fields(LangevinConfig)}
         unknown = sorted(set(options) - own - sched)
         if unknown:
-            raise TypeError(f"unknown option(s) {unknown}; valid: {sorted((own - {'chain'}) | sched)}")
+            raise TypeError(f"unknown option(s) {unknown}; valid: {sorted(cls.flat_names())}")
         chain = options.pop("chain", SAMPLING)
         flat = {k: options.pop(k) for k in list(options) if k in sched}
         return cls(**options, chain=replace(chain, **flat) if flat else chain)
@@ -159,7 +165,8 @@ class LangevinSolver(StageSolver):
         )
 
     def _run(self, problems: list[Problem], init: Tensor | list[Tensor] | None, seed: int) -> list[Result]:
-        o, cfg = self.options, self.options.chain
+        """Draw each problem's start, run one chain over every particle, and answer each problem."""
+        o = self.options
         t0 = time.perf_counter()
         n = problems[0].n
         if any(p.n != n for p in problems):
@@ -167,6 +174,35 @@ class LangevinSolver(StageSolver):
         rows = None if init is None else max(len(x) for x in init) if isinstance(init, list) else len(init)
         self.check_memory(problems, rows)
         gen = generator(seed, problems[0].device)
+        starts = self._starts(problems, init, gen)
+        sizes = [len(x) for x in starts]
+        ends = np.cumsum(sizes).tolist()
+        spans = list(zip([0, *ends[:-1]], ends))
+        masks = [torch.as_tensor(p.movable_mask, device=p.device) for p in problems]
+        movable = torch.cat([m[None].expand(k, n) for m, k in zip(masks, sizes)])  # (B, N)
+        lo = torch.cat([p.lo[None].expand(k, 2) for p, k in zip(problems, sizes)])  # (B, 2)
+        hi = torch.cat([p.hi[None].expand(k, 2) for p, k in zip(problems, sizes)])
+        qps = [LinearisedProjection(p) if o.projection == "qp" else None for p in problems]
+        project = self._projection(problems, masks, qps, spans)
+        cost = problems[0].cost if len(problems) == 1 else stack_sums([p.cost for p in problems], sizes)
+        t1 = time.perf_counter()
+        groups = len(problems) if len(set(sizes)) == 1 else 1
+        x, e = langevin(
+            cost, project(torch.cat(starts)), movable, lo, hi, o.chain, gen, project=project, groups=groups
+        )
+        t2 = time.perf_counter()
+        setup, solve = (t1 - t0) / len(problems), (t2 - t1) / len(problems)
+        return [
+            self._answer(p, x[a:b], e[a:b], qps[k], setup, solve)
+            for k, (p, (a, b)) in enumerate(zip(problems, spans))
+        ]
+
+    def _starts(
+        self, problems: list[Problem], init: Tensor | list[Tensor] | None, gen: torch.Generator
+    ) -> list[Tensor]:
+        """Each problem's starting particles: its own ``init``, the shared ``init``, the best ``particles``
+        of ``candidates`` draws by cost, or ``particles`` draws (drawn by ``gen`` in problem order)."""
+        o = self.options
         starts = []
         for k, p in enumerate(problems):
             if isinstance(init, list):
@@ -179,14 +215,18 @@ class LangevinSolver(StageSolver):
                 )
             else:
                 starts.append(p.initial(o.particles, gen, proposals=o.proposals))
-        sizes = [len(x) for x in starts]
-        ends = np.cumsum(sizes).tolist()
-        spans = list(zip([0, *ends[:-1]], ends))
-        masks = [torch.as_tensor(p.movable_mask, device=p.device) for p in problems]
-        movable = torch.cat([m[None].expand(k, n) for m, k in zip(masks, sizes)])  # (B, N)
-        lo = torch.cat([p.lo[None].expand(k, 2) for p, k in zip(problems, sizes)])  # (B, 2)
-        hi = torch.cat([p.hi[None].expand(k, 2) for p, k in zip(problems, sizes)])
-        qps = [LinearisedProjection(p) if o.projection == "qp" else None for p in problems]
+        return starts
+
+    def _projection(
+        self,
+        problems: list[Problem],
+        masks: list[Tensor],
+        qps: list[LinearisedProjection | None],
+        spans: list[tuple[int, int]],
+    ) -> Callable[[Tensor], Tensor]:
+        """The projection after every step of the batch: each problem's rows (``spans``) onto its
+        constraints' closed forms, then its linearised non-overlap QP (``projection="qp"``)."""
+        o = self.options
 
         def project_one(k: int, x: Tensor) -> Tensor:
             for c in problems[k].cost.constraint_terms:
@@ -201,45 +241,42 @@ class LangevinSolver(StageSolver):
                 return project_one(0, x)
             return torch.cat([project_one(k, x[a:b]) for k, (a, b) in enumerate(spans)])
 
-        cost = problems[0].cost if len(problems) == 1 else stack_sums([p.cost for p in problems], sizes)
-        t1 = time.perf_counter()
-        groups = len(problems) if len(set(sizes)) == 1 else 1
-        x, e = langevin(
-            cost, project(torch.cat(starts)), movable, lo, hi, cfg, gen, project=project, groups=groups
+        return project
+
+    def _answer(
+        self,
+        p: Problem,
+        xs: Tensor,
+        es: Tensor,
+        qp: LinearisedProjection | None,
+        time_setup: float,
+        time_solve: float,
+    ) -> Result:
+        """One problem's result from its particles ``xs`` and their costs ``es``: the best by
+        :func:`best_first` (the doubted ones after the others with ``trusted_first``), every particle kept."""
+        o, cfg = self.options, self.options.chain
+        with torch.no_grad():
+            viol = p.violation(xs)
+        ok = viol <= FEASIBILITY_TOL
+        trusted = ~p.doubted(xs) if o.trusted_first else None
+        best = int(best_first(ok, torch.where(ok, es, es + viol), trusted)[0])
+        notes = [] if ok[best] else [f"{int(ok.sum())} of {len(es)} particles within the violation tolerance"]
+        if trusted is not None and not trusted.all():
+            notes.append(
+                f"{int((~trusted).sum())} of {len(es)} particles {doubt_note(p.cost)}"
+                + ("" if trusted[best] else ", the answer among them")
+            )
+        if qp is not None and notes:
+            notes.append(f"{qp.qp_solves} projection QPs")
+        return make_result(
+            p,
+            self.name,
+            xs[best],
+            Status.SAMPLED,
+            cfg.steps + cfg.final_descent,
+            time_setup,
+            time_solve,
+            message="; ".join(notes),
+            samples=xs,
+            sample_costs=es,
         )
-        t2 = time.perf_counter()
-        out = []
-        for k, (p, (a, b)) in enumerate(zip(problems, spans)):
-            xs, es = x[a:b], e[a:b]
-            with torch.no_grad():
-                viol = p.violation(xs)
-            ok = viol <= FEASIBILITY_TOL
-            trusted = ~p.untrusted(xs) if o.trusted_first else None
-            best = int(best_first(ok, torch.where(ok, es, es + viol), trusted)[0])
-            notes = (
-                [] if ok[best] else [f"{int(ok.sum())} of {len(es)} particles within the violation tolerance"]
-            )
-            if trusted is not None and not trusted.all():
-                notes.append(
-                    f"{int((~trusted).sum())} of {len(es)} particles put an object where its data has none "
-                    "(at a bound, or far from the rest)"
-                    + ("" if trusted[best] else ", the answer among them")
-                )
-            qp = qps[k]
-            if qp is not None and notes:
-                notes.append(f"{qp.qp_solves} projection QPs")
-            out.append(
-                make_result(
-                    p,
-                    self.name,
-                    xs[best],
-                    Status.SAMPLED,
-                    cfg.steps + cfg.final_descent,
-                    (t1 - t0) / len(problems),
-                    (t2 - t1) / len(problems),
-                    message="; ".join(notes),
-                    samples=xs,
-                    sample_costs=es,
-                )
-            )
-        return out

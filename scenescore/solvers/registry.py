@@ -5,53 +5,35 @@ from __future__ import annotations
 import difflib
 import time
 from collections.abc import Callable
+from dataclasses import fields, is_dataclass
 from typing import Any
 
 import numpy as np
 from torch import Tensor
 
 from ..problem import Problem, ProblemError
+from .alm import ALMSolver
 from .base import Solver
+from .casadi import CasadiSolver
 from .chain import Chain
+from .langevin import LangevinSolver
 from .result import Result
+from .sqp import OSQPSolver
 
 __all__ = ["register", "available", "get", "option_names", "solve"]
 
-
-def _langevin(**o: Any) -> Solver:
-    from .langevin import LangevinSolver
-
-    return LangevinSolver(**o)
-
-
-def _osqp(**o: Any) -> Solver:
-    from .sqp import OSQPSolver
-
-    return OSQPSolver(**o)
-
-
-def _casadi(**o: Any) -> Solver:
-    from .casadi import CasadiSolver
-
-    return CasadiSolver(**o)
-
-
-def _alm(**o: Any) -> Solver:
-    from .alm import ALMSolver
-
-    return ALMSolver(**o)
-
-
+# name -> factory(**options) -> Solver; a solver class with an ``options_cls`` is its own factory
 _REGISTRY: dict[str, Callable[..., Solver]] = {
-    "langevin": _langevin,
-    "osqp": _osqp,
-    "casadi": _casadi,
-    "alm": _alm,
+    "langevin": LangevinSolver,
+    "osqp": OSQPSolver,
+    "casadi": CasadiSolver,
+    "alm": ALMSolver,
 }
 
 
 def register(name: str, factory: Callable[..., Solver]) -> None:
-    """Add a solver under ``name`` (``factory(**options) -> Solver``)."""
+    """Add a solver under ``name`` (``factory(**options) -> Solver``). A factory with an ``options_cls``
+    dataclass (a :class:`~scenescore.solvers.base.StageSolver` subclass) has its option names checked."""
     if ">" in name or "," in name:
         raise ValueError(f"solver name {name!r} may not contain '>' or ','")
     _REGISTRY[name] = factory
@@ -63,28 +45,18 @@ def available() -> list[str]:
 
 
 def option_names(name: str) -> list[str] | None:
-    """The option names a built-in solver takes (``None`` for a registered solver: not known ahead)."""
-    from dataclasses import fields
-
-    if name == "langevin":
-        from ..sampling import LangevinConfig
-        from .langevin import LangevinOptions
-
-        own = {f.name for f in fields(LangevinOptions)} - {"chain"}
-        return sorted(own | {f.name for f in fields(LangevinConfig)})
-    if name == "osqp":
-        from .sqp import SQPOptions
-
-        return sorted(f.name for f in fields(SQPOptions))
-    if name == "casadi":
-        from .casadi import CasadiOptions
-
-        return sorted(f.name for f in fields(CasadiOptions))
-    if name == "alm":
-        from .alm import ALMOptions
-
-        return sorted(f.name for f in fields(ALMOptions))
-    return None
+    """The option names the solver registered as ``name`` takes, read from its ``options_cls``: the
+    names its ``flat_names()`` gives where it has one (options given flat beside nested ones), else its
+    dataclass fields; ``None`` for a factory without one (not known ahead)."""
+    cls = getattr(_REGISTRY.get(name), "options_cls", None)
+    if cls is None:
+        return None
+    flat = getattr(cls, "flat_names", None)
+    if flat is not None:
+        return sorted(flat())
+    if not is_dataclass(cls):
+        return None
+    return sorted(f.name for f in fields(cls))
 
 
 def get(name: str, **options: Any) -> Solver:

@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..models.trust import Assessment
+from ..costs.guide import Verdict, verdicts
 from ..problem import FEASIBILITY_TOL, Problem
 from ..scene import Scene, atomic_write_text
 
@@ -63,7 +63,8 @@ class Result:
     threads: int = 1  # torch threads the solve ran on
     qp_time_mean: float | None = None  # seconds per QP, for solvers that solve QPs
     wall_time: float | None = None  # seconds from ss.solve's call to its return (set by ss.solve)
-    confidence: dict[str, Assessment] = field(default_factory=dict)  # moving objects, by the learned energy
+    # each moving object a guiding term judges (the learned energy: by its data), by name
+    confidence: dict[str, Verdict] = field(default_factory=dict)
 
     @property
     def warnings(self) -> list[str]:
@@ -150,7 +151,7 @@ class Result:
 
 def best_first(feasible: Tensor, cost: Tensor, trusted: Tensor | None = None) -> Tensor:
     """The order ``(B,)`` of a population: feasible rows first, then (given ``trusted``) within each group
-    the trusted rows (:meth:`~scenescore.problem.Problem.untrusted`), every group by ``cost`` (not finite:
+    the trusted rows (not :meth:`~scenescore.problem.Problem.doubted`), every group by ``cost`` (not finite:
     last; a stable sort)."""
     key = torch.where(torch.isfinite(cost), cost, torch.full_like(cost, float("inf")))
     order = torch.argsort(key, stable=True)
@@ -211,7 +212,7 @@ def make_result(
             max_v, violated = w[1], f"{c.name}: {w[0]}"
     feas = problem.check(x[0], tol)
     pose_np = _numpy(x[0])
-    confidence = {k: v for _, c in problem.cost for k, v in c.assess(pose_np).items()}
+    confidence = verdicts(problem.cost, pose_np)
     success = status.ok and max_v <= tol and math.isfinite(objective)
     if status == Status.CONVERGED and max_v > tol:
         status = Status.INFEASIBLE  # a status never says converged beside a violated constraint

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 import osqp
@@ -30,6 +31,12 @@ from .result import Result, Status, make_result
 __all__ = ["SQPOptions", "OSQPSolver"]
 
 MAX_ITER = 1_000_000  # more is a typo, not a plan
+# the trust region: a step is accepted when the merit function falls by more than ACCEPT of the QP's
+# prediction; the region doubles after a step that used most of it and fell by more than EXPAND, and
+# shrinks by SHRINK after a rejected step
+ACCEPT = 0.1
+EXPAND = 0.75
+SHRINK = 0.25
 
 
 @dataclass
@@ -45,11 +52,28 @@ class SQPOptions:
     elastic: float = 1e4  # price of an elastic slack in the QP
     tol_step: float = 1e-7  # converged when the step is this small (metres) ...
     tol_kkt: float = 1e-5  # ... or the Lagrangian's gradient this small, with violations within slack
+    # the merit function's first price of a violation; raised to 1.5 x the QP's largest multiplier + 1
+    # whenever that is higher, so a step never buys objective with violation the QP would not
+    penalty_init: float = 10.0
+    qp_eps_abs: float = 1e-6  # OSQP's absolute tolerance for each step's QP
+    qp_eps_rel: float = 1e-6  # OSQP's relative tolerance for each step's QP
+    qp_max_iter: int = 4000  # OSQP's iterations per QP (its answer is used when it runs out)
     threads: int | None = None  # torch threads; None: one (tiny tensors)
 
     def __post_init__(self) -> None:
         check_number("osqp", "max_iter", self.max_iter, 0, MAX_ITER, integer=True)
-        for name in ("trust_init", "trust_max", "trust_min", "tol_step", "tol_kkt", "elastic"):
+        check_number("osqp", "qp_max_iter", self.qp_max_iter, 1, MAX_ITER, integer=True)
+        for name in (
+            "trust_init",
+            "trust_max",
+            "trust_min",
+            "tol_step",
+            "tol_kkt",
+            "elastic",
+            "penalty_init",
+            "qp_eps_abs",
+            "qp_eps_rel",
+        ):
             check_number("osqp", name, getattr(self, name), 0, open_lo=True)
         for name in ("slack", "merit_tol"):
             check_number("osqp", name, getattr(self, name), 0)
@@ -62,8 +86,9 @@ class SQPOptions:
             check_number("osqp", "threads", self.threads, 1, 1024, integer=True)
 
 
-class _Model:
-    """The problem seen by a refinement solver: objective terms and constraint rows on the movable variables."""
+class _Refinement:
+    """The problem seen by a refinement solver: objective terms and constraint rows on the movable
+    variables ``z`` (the moving objects' poses, flat)."""
 
     def __init__(self, problem: Problem):
         self.problem = problem
@@ -108,6 +133,122 @@ class _Model:
         j = torch.cat(js, 0)[:, self.var_obj].reshape(self.m, self.n)
         return torch.cat(gs).cpu().numpy(), j.cpu().numpy()
 
+    def at(self, z: np.ndarray, base: Tensor) -> _Point:
+        """The objective, its gradient, the rows and their Jacobian at ``z`` (the rest of the poses: ``base``)."""
+        x = self.poses(z, base)
+        f, grad = self.objective(x)
+        rows, jac = self.constraints(x)
+        return _Point(z, f, cast(np.ndarray, grad), rows, cast(np.ndarray, jac))
+
+
+@dataclass
+class _Point:
+    """An SQP iterate: the variables, the objective and its gradient, the rows and their Jacobian."""
+
+    z: np.ndarray  # (n,)
+    f: float
+    grad: np.ndarray  # (n,)
+    rows: np.ndarray  # (m,) g(z) >= 0 where feasible
+    jac: np.ndarray  # (m, n)
+
+    def lagrangian_grad(self, lam: np.ndarray) -> np.ndarray:
+        """The Lagrangian's gradient ``grad f - J' lam``."""
+        return self.grad - self.jac.T @ lam
+
+    def violation(self, tol: float, step: np.ndarray | None = None) -> float:
+        """The l1 violation beyond ``tol`` of the rows, or of their linearisation after ``step``."""
+        g = self.rows if step is None else self.rows + self.jac @ step
+        return float(np.sum(np.maximum(-g - tol, 0.0)))
+
+
+class _StepQP:
+    """The QP of one SQP step over ``[d (n), s (m)]``: ``min 1/2 d'Hd + q'd + elastic * sum(s)`` s.t.
+    ``J d + s >= slack - g``, ``-trust <= d <= trust``, ``s >= 0``. Its sparsity is fixed at setup (a
+    row touches only its objects' variables); each step updates the values."""
+
+    def __init__(self, model: _Refinement, o: SQPOptions):
+        n, m = model.n, model.m
+        self.n, self.m, self.options = n, m, o
+        self.jac_rows, self.jac_cols = _jacobian_pattern(model)
+        rows = np.concatenate([self.jac_rows, np.arange(m), m + np.arange(n), m + n + np.arange(m)])
+        cols = np.concatenate([self.jac_cols, n + np.arange(m), np.arange(n), n + np.arange(m)])
+        self.a_order = np.lexsort((rows, cols))  # OSQP takes CSC values in column order
+        a_mat = sp.csc_matrix(
+            (np.ones(len(rows))[self.a_order], (rows[self.a_order], cols[self.a_order])),
+            shape=(2 * m + n, n + m),
+        )
+        hess_rows, hess_cols = np.triu_indices(n)
+        p_order = np.lexsort((hess_rows, hess_cols))
+        self.hess_rows, self.hess_cols = hess_rows[p_order], hess_cols[p_order]
+        p_mat = sp.csc_matrix(
+            (np.ones(len(self.hess_rows)), (self.hess_rows, self.hess_cols)), shape=(n + m, n + m)
+        )
+        self.qp = osqp.OSQP()
+        self.qp.setup(
+            p_mat,
+            np.zeros(n + m),
+            a_mat,
+            np.zeros(2 * m + n),
+            np.zeros(2 * m + n) + 1.0,
+            verbose=False,
+            eps_abs=o.qp_eps_abs,
+            eps_rel=o.qp_eps_rel,
+            polishing=True,
+            max_iter=o.qp_max_iter,
+            warm_starting=True,
+        )
+        self.times: list[float] = []  # seconds per solve
+
+    def solve(self, point: _Point, hess: np.ndarray, radius: np.ndarray) -> Any:
+        """OSQP's answer for the step from ``point`` with the model Hessian ``hess`` and the trust
+        region ``radius (n,)``; ``.x[:n]`` is the step, ``-.y[:m]`` the rows' multipliers."""
+        n, m, o = self.n, self.m, self.options
+        a_vals = np.concatenate([point.jac[self.jac_rows, self.jac_cols], np.ones(m), np.ones(n), np.ones(m)])
+        lo = np.concatenate([o.slack - point.rows, -radius, np.zeros(m)])
+        hi = np.concatenate([np.full(m, np.inf), radius, np.full(m, np.inf)])
+        q = np.concatenate([point.grad, np.full(m, o.elastic)])
+        t = time.perf_counter()
+        self.qp.update(Px=hess[self.hess_rows, self.hess_cols], Ax=a_vals[self.a_order], q=q, l=lo, u=hi)
+        res = self.qp.solve(raise_error=False)
+        self.times.append(time.perf_counter() - t)
+        return res
+
+
+def _jacobian_pattern(model: _Refinement) -> tuple[np.ndarray, np.ndarray]:
+    """The nonzeros ``(rows, cols)`` of the constraint Jacobian: each row's objects' three variables."""
+    col = {int(ob): k for k, ob in enumerate(model.var_obj)}
+    rows: list[int] = []
+    cols: list[int] = []
+    for r, objs in enumerate(model.support):
+        for ob in objs:
+            if ob in col:
+                rows += [r] * 3
+                cols += [3 * col[ob] + a for a in range(3)]
+    return np.array(rows, dtype=int), np.array(cols, dtype=int)
+
+
+def _qp_failed(res: Any) -> bool:
+    """A QP answer with no usable step."""
+    return (
+        res.info.status not in ("solved", "solved inaccurate", "maximum iterations reached")
+        or res.x is None
+        or not np.all(np.isfinite(res.x))
+    )
+
+
+def _damped_bfgs(hess: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Powell's damped BFGS update of ``hess`` for the step ``s`` and the gradient change ``y``: ``y``
+    blended towards ``hess @ s`` where the curvature ``s'y`` is too small, so ``hess`` stays positive
+    definite; unchanged when ``s'Hs`` is 0."""
+    hs = hess @ s
+    shs = float(s @ hs)
+    sy = float(s @ y)
+    if not shs > 1e-16:
+        return hess
+    theta = 1.0 if sy >= 0.2 * shs else 0.8 * shs / (shs - sy)
+    r = theta * y + (1 - theta) * hs
+    return hess - np.outer(hs, hs) / shs + np.outer(r, r) / float(s @ r)
+
 
 class OSQPSolver(StageSolver):
     """Refinement stage: ``solve(problem, init=None, seed=0) -> Result``."""
@@ -118,134 +259,86 @@ class OSQPSolver(StageSolver):
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         o = self.options
         t0 = time.perf_counter()
-        mdl = _Model(problem)
-        n, m = mdl.n, mdl.m
+        model = _Refinement(problem)
         x0 = start_poses(problem, init, seed)
         base = x0[0].clone()
-        z = x0[0, mdl.var_obj].reshape(-1).cpu().numpy().copy()
-        scale = np.tile(
-            [1.0, 1.0, 1.0 / np.sqrt(ANGLE_WEIGHT)], len(mdl.var_obj)
-        )  # trust region per coordinate
-
-        # the QP over [d (n), s (m)]: min 1/2 d'Hd + q'd + elastic * sum(s)  s.t.  J d + s >= slack - g,
-        # -trust <= d <= trust, s >= 0. Sparsity is fixed; values are updated each iteration.
-        col = {int(ob): k for k, ob in enumerate(mdl.var_obj)}
-        jr_list: list[int] = []
-        jc_list: list[int] = []
-        for r, objs in enumerate(mdl.support):
-            for ob in objs:
-                if ob in col:
-                    jr_list += [r] * 3
-                    jc_list += [3 * col[ob] + a for a in range(3)]
-        jr, jc = np.array(jr_list, dtype=int), np.array(jc_list, dtype=int)
-        rows = np.concatenate([jr, np.arange(m), m + np.arange(n), m + n + np.arange(m)])
-        cols = np.concatenate([jc, n + np.arange(m), np.arange(n), n + np.arange(m)])
-        a_order = np.lexsort((rows, cols))
-        a_mat = sp.csc_matrix(
-            (np.ones(len(rows))[a_order], (rows[a_order], cols[a_order])), shape=(2 * m + n, n + m)
-        )
-        iu, ju = np.triu_indices(n)
-        p_order = np.lexsort((iu, ju))
-        iu, ju = iu[p_order], ju[p_order]
-        p_mat = sp.csc_matrix((np.ones(len(iu)), (iu, ju)), shape=(n + m, n + m))
-        qp = osqp.OSQP()
-        qp.setup(
-            p_mat,
-            np.zeros(n + m),
-            a_mat,
-            np.zeros(2 * m + n),
-            np.zeros(2 * m + n) + 1.0,
-            verbose=False,
-            eps_abs=1e-6,
-            eps_rel=1e-6,
-            polishing=True,
-            max_iter=4000,
-            warm_starting=True,
-        )
+        z = x0[0, model.var_obj].reshape(-1).cpu().numpy().copy()
+        # the trust region per coordinate: metres for positions, radians scaled like the projection's
+        scale = np.tile([1.0, 1.0, 1.0 / np.sqrt(ANGLE_WEIGHT)], len(model.var_obj))
+        qp = _StepQP(model, o)
         t1 = time.perf_counter()
-
-        def evaluate(zz: np.ndarray, derivs: bool = True):
-            x = mdl.poses(zz, base)
-            f, gf = mdl.objective(x, derivs)
-            g, jg = mdl.constraints(x, derivs)
-            return f, gf, g, jg
-
-        f, gf, g, jg = evaluate(z)
-        h = np.eye(n)
-        mu = 10.0
-        trust = o.trust_init
-        status, it, msg = Status.MAX_ITERATIONS, 0, ""
-        qp_times = []
-
-        def merit(fv: float, gv: np.ndarray) -> float:
-            return fv + mu * float(np.sum(np.maximum(-gv - o.merit_tol, 0.0)))
-
-        for it in range(1, o.max_iter + 1):
-            tr = trust * scale
-            a_vals = np.concatenate([jg[jr, jc], np.ones(m), np.ones(n), np.ones(m)])[a_order]
-            lo = np.concatenate([o.slack - g, -tr, np.zeros(m)])
-            hi = np.concatenate([np.full(m, np.inf), tr, np.full(m, np.inf)])
-            tq = time.perf_counter()
-            qp.update(Px=h[iu, ju], Ax=a_vals, q=np.concatenate([gf, np.full(m, o.elastic)]), l=lo, u=hi)
-            res = qp.solve(raise_error=False)
-            qp_times.append(time.perf_counter() - tq)
-            if (
-                res.info.status not in ("solved", "solved inaccurate", "maximum iterations reached")
-                or res.x is None
-                or not np.all(np.isfinite(res.x))
-            ):
-                status, msg = Status.FAILED, f"QP failed at iteration {it}: {res.info.status}"
-                break
-            d = res.x[:n]
-            lam_qp = np.maximum(-res.y[:m], 0.0)
-            mu = max(mu, 1.5 * float(lam_qp.max(initial=0.0)) + 1.0)
-            pred_f = -(gf @ d + 0.5 * d @ h @ d)
-            viol_now = np.sum(np.maximum(-g - o.merit_tol, 0.0))
-            viol_lin = np.sum(np.maximum(-(g + jg @ d) - o.merit_tol, 0.0))
-            pred = pred_f + mu * (viol_now - viol_lin)
-            step = float(np.max(np.abs(d) / scale)) if n else 0.0
-            kkt = float(np.max(np.abs(gf - jg.T @ lam_qp), initial=0.0))
-            if g.size == 0 or g.min() >= -o.slack:
-                if step < o.tol_step or kkt < o.tol_kkt:
-                    status = Status.CONVERGED
-                    break
-            z_new = z + d
-            f2, gf2, g2, jg2 = evaluate(z_new)
-            ared = merit(f, g) - merit(f2, g2)
-            ratio = ared / pred if pred > 1e-14 else (1.0 if ared >= -1e-12 else -1.0)
-            if ratio > 0.1:
-                # damped BFGS on the Lagrangian's gradient
-                s = d
-                y = (gf2 - jg2.T @ lam_qp) - (gf - jg.T @ lam_qp)
-                hs = h @ s
-                shs = float(s @ hs)
-                sy = float(s @ y)
-                if shs > 1e-16:
-                    theta = 1.0 if sy >= 0.2 * shs else 0.8 * shs / (shs - sy)
-                    r = theta * y + (1 - theta) * hs
-                    h = h - np.outer(hs, hs) / shs + np.outer(r, r) / float(s @ r)
-                z, f, gf, g, jg = z_new, f2, gf2, g2, jg2
-                if ratio > 0.75 and step > 0.9 * trust:
-                    trust = min(2 * trust, o.trust_max)
-            else:
-                trust *= 0.25
-                if trust < o.trust_min:
-                    ok = g.size == 0 or g.min() >= -FEASIBILITY_TOL
-                    status = Status.CONVERGED if ok else Status.INFEASIBLE
-                    msg = (
-                        "converged: no step improves the merit function (the trust region fell below "
-                        f"{o.trust_min:g})"
-                        if ok
-                        else "stopped infeasible: the trust region fell below "
-                        f"{o.trust_min:g} with constraints still violated"
-                    )
-                    break
+        point, status, it, msg = self._iterate(model, qp, model.at(z, base), base, scale)
         t2 = time.perf_counter()
-        if status == Status.MAX_ITERATIONS:
-            msg = f"stopped after {o.max_iter} iterations"
-        x = mdl.poses(z, base)[0]
-        result = make_result(problem, self.name, x, status, it, t1 - t0, t2 - t1, message=msg)
+        result = make_result(
+            problem, self.name, model.poses(point.z, base)[0], status, it, t1 - t0, t2 - t1, message=msg
+        )
         if result.status == Status.CONVERGED and not result.success:
             result.status = Status.INFEASIBLE
-        result.qp_time_mean = float(np.mean(qp_times)) if qp_times else 0.0
+        result.qp_time_mean = float(np.mean(qp.times)) if qp.times else 0.0
         return result
+
+    def _iterate(
+        self, model: _Refinement, qp: _StepQP, point: _Point, base: Tensor, scale: np.ndarray
+    ) -> tuple[_Point, Status, int, str]:
+        """SQP steps from ``point`` until converged, stalled, failed or out of iterations: the last
+        accepted point, the status, the iterations taken and a message."""
+        o, n, m = self.options, model.n, model.m
+        hess = np.eye(n)
+        penalty = o.penalty_init
+        trust = o.trust_init
+        for it in range(1, o.max_iter + 1):
+            res = qp.solve(point, hess, trust * scale)
+            if _qp_failed(res):
+                return point, Status.FAILED, it, f"QP failed at iteration {it}: {res.info.status}"
+            d = res.x[:n]
+            lam = np.maximum(-res.y[:m], 0.0)
+            penalty = max(penalty, 1.5 * float(lam.max(initial=0.0)) + 1.0)
+            step = float(np.max(np.abs(d) / scale)) if n else 0.0
+            if self._converged(point, lam, step):
+                return point, Status.CONVERGED, it, ""
+            trial = model.at(point.z + d, base)
+            ratio = self._ratio(point, trial, d, hess, penalty)
+            if ratio > ACCEPT:
+                hess = _damped_bfgs(hess, d, trial.lagrangian_grad(lam) - point.lagrangian_grad(lam))
+                point = trial
+                if ratio > EXPAND and step > 0.9 * trust:
+                    trust = min(2 * trust, o.trust_max)
+            else:
+                trust *= SHRINK
+                if trust < o.trust_min:
+                    status, msg = self._stalled(point)
+                    return point, status, it, msg
+        return point, Status.MAX_ITERATIONS, o.max_iter, f"stopped after {o.max_iter} iterations"
+
+    def _converged(self, point: _Point, lam: np.ndarray, step: float) -> bool:
+        """Every row within ``slack``, and the step or the Lagrangian's gradient below its tolerance."""
+        o = self.options
+        kkt = float(np.max(np.abs(point.lagrangian_grad(lam)), initial=0.0))
+        feasible = point.rows.size == 0 or point.rows.min() >= -o.slack
+        return bool(feasible and (step < o.tol_step or kkt < o.tol_kkt))
+
+    def _ratio(self, point: _Point, trial: _Point, d: np.ndarray, hess: np.ndarray, penalty: float) -> float:
+        """The l1 merit function's actual fall from ``point`` to ``trial`` over the fall the QP's model
+        predicts for the step ``d`` (a prediction of about 0: 1 if the merit did not rise, else -1)."""
+        tol = self.options.merit_tol
+        pred_f = -(point.grad @ d + 0.5 * d @ hess @ d)
+        pred = pred_f + penalty * (point.violation(tol) - point.violation(tol, d))
+        ared = _merit(point, penalty, tol) - _merit(trial, penalty, tol)
+        return ared / pred if pred > 1e-14 else (1.0 if ared >= -1e-12 else -1.0)
+
+    def _stalled(self, point: _Point) -> tuple[Status, str]:
+        """The status and message when the trust region fell below ``trust_min``: converged if the
+        rows hold within the feasibility tolerance, else infeasible."""
+        o = self.options
+        if point.rows.size == 0 or point.rows.min() >= -FEASIBILITY_TOL:
+            return Status.CONVERGED, (
+                f"converged: no step improves the merit function (the trust region fell below {o.trust_min:g})"
+            )
+        return Status.INFEASIBLE, (
+            f"stopped infeasible: the trust region fell below {o.trust_min:g} with constraints still violated"
+        )
+
+
+def _merit(point: _Point, penalty: float, tol: float) -> float:
+    """The l1 merit function: the objective plus ``penalty`` times the violation beyond ``tol``."""
+    return point.f + penalty * point.violation(tol)

@@ -2,13 +2,12 @@
 
 render (sprites, ground-truth masks) -> segment (a :class:`Detector`) -> pose from image moments ->
 rectify and crop -> encode (the built-in ``"image"`` encoder, or CLIP) + scale descriptor -> Scene.
-See ``docs/vision.md``.
+This package's face holds the imaging primitives; the last step, which encodes crops and so sits above
+the encoders, is :mod:`scenescore.vision.graph` (``scene_from_image``, ``graphs_from_renders``,
+``scenes_from_image_folder``), imported from there. See ``docs/vision.md``.
 """
 
 from __future__ import annotations
-
-import importlib
-from typing import Any
 
 from .crop import Crop, object_crop, rectify_crop, scale_descriptor
 from .pose import MomentPose, angle_error, pose_from_mask
@@ -45,25 +44,4 @@ __all__ = [
     "rectify_crop",
     "scale_descriptor",
     "object_crop",
-    "scene_from_image",
-    "graphs_from_renders",
-    "scenes_from_image_folder",
-    "match_objects",
 ]
-
-# Scene graphs from images need the encoders, which sit above these imaging primitives (the image
-# encoders crop with them): the graph functions are imported on first use, so importing a primitive
-# never pulls in the encoders.
-_LAZY = {
-    "scene_from_image": "graph",
-    "graphs_from_renders": "graph",
-    "scenes_from_image_folder": "graph",
-    "match_objects": "graph",
-}
-__all__ += list(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,7 +21,7 @@ from ..encoders import Encoder
 from ..scene import Bounds, Scene, SceneError, SceneObject
 from .crop import rectify_crop
 from .pose import MomentPose, angle_error, pose_from_mask
-from .render import DEFAULT_PPM, MASK_PREVIEW, image_shape, read_image, render_scene
+from .render import DEFAULT_PPM, MASK_PREVIEW, image_shape, read_image, render_object, render_scene
 from .segment import ClassicalDetector, Detector, as_detections
 
 __all__ = [
@@ -131,8 +131,6 @@ def scene_and_poses_from_image(
 
 def gt_symmetry(obj: SceneObject) -> int:
     """The symmetry order a mask of ``obj`` shows (round 0, else as drawn), for scoring orientation."""
-    from .render import render_object
-
     image, mask, bounds = render_object(obj)
     return pose_from_mask(mask, DEFAULT_PPM, bounds).symmetry
 

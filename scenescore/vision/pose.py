@@ -68,6 +68,106 @@ def _extents(pts: np.ndarray, m: np.ndarray, alpha: float, ppm: float):
     return u - cu, v - cv, (u1 - u0, v1 - v0), m + cu * a + cv * b
 
 
+def _circle_fill(d: np.ndarray, ppm: float, area: float) -> float:
+    """The share of the circle about the centroid, through the farthest pixel, that the mask covers."""
+    r_max = float(np.sqrt((d**2).sum(axis=1)).max()) + 0.5 / ppm
+    return area / (math.pi * r_max**2)
+
+
+def _disk_pose(m: np.ndarray, area: float, ratio: float) -> MomentPose:
+    """A disk: the centroid is its centre; the diameter from the area is unbiased."""
+    dia = 2 * math.sqrt(area / math.pi)
+    return MomentPose(
+        float(m[0]),
+        float(m[1]),
+        0.0,
+        dia,
+        dia,
+        0,
+        (float(m[0]), float(m[1])),
+        area,
+        ratio,
+        (0.0, 0.0),
+    )
+
+
+def _square_pose(
+    cols: np.ndarray,
+    rows: np.ndarray,
+    pts: np.ndarray,
+    m: np.ndarray,
+    ppm: float,
+    area: float,
+    ratio: float,
+) -> MomentPose:
+    """Isotropic but not round (a square): the minimum-area rectangle gives the axes (four-fold)."""
+    pix = np.stack([cols, rows], axis=1).astype(np.float32)
+    (_, _), (_, _), ang = cv2.minAreaRect(pix)
+    alpha = wrap_angle(-math.radians(ang))  # image rows point down: angles flip sign
+    alpha = (alpha + math.pi / 4) % (math.pi / 2) - math.pi / 4
+    u, v, (lx, ly), c = _extents(pts, m, alpha, ppm)
+    return MomentPose(
+        float(c[0]),
+        float(c[1]),
+        float(alpha),
+        float(lx),
+        float(ly),
+        4,
+        (float(m[0]), float(m[1])),
+        area,
+        ratio,
+        (0.0, 0.0),
+    )
+
+
+def _direction(ix: float, iy: float, direction_tol: float) -> tuple[int, bool]:
+    """``(symmetry, flip)`` from the area imbalances along and across the axis.
+
+    The half with more area along the axis is ``+x``; when those balance, the half with more area
+    across it is ``+y``; when both balance the object is two-fold symmetric.
+    """
+    if abs(ix) >= direction_tol:
+        return 1, ix < 0
+    if abs(iy) >= direction_tol:
+        return 1, iy < 0
+    return 2, False
+
+
+def _directed_pose(
+    pts: np.ndarray,
+    m: np.ndarray,
+    n: int,
+    alpha: float,
+    ppm: float,
+    area: float,
+    ratio: float,
+    direction_tol: float,
+) -> MomentPose:
+    """An elongated mask: the principal axis, its direction resolved by the mass along it."""
+    u, v, (lx, ly), c = _extents(pts, m, alpha, ppm)
+    ix = float((np.count_nonzero(u > 0) - np.count_nonzero(u < 0)) / n)
+    iy = float((np.count_nonzero(v > 0) - np.count_nonzero(v < 0)) / n)
+    sym, flip = _direction(ix, iy, direction_tol)
+    if flip:
+        alpha += math.pi
+        ix, iy = -ix, -iy
+    alpha = float(wrap_angle(alpha))
+    if sym == 2:
+        alpha = (alpha + math.pi / 2) % math.pi - math.pi / 2
+    return MomentPose(
+        float(c[0]),
+        float(c[1]),
+        alpha,
+        float(lx),
+        float(ly),
+        sym,
+        (float(m[0]), float(m[1])),
+        area,
+        ratio,
+        (ix, iy),
+    )
+
+
 def pose_from_mask(
     mask: np.ndarray,
     ppm: float,
@@ -98,67 +198,10 @@ def pose_from_mask(
     area = n / ppm**2
     alpha = math.atan2(major[1], major[0])
     if ratio >= circular_ratio:
-        r_max = float(np.sqrt((d**2).sum(axis=1)).max()) + 0.5 / ppm
-        if area / (math.pi * r_max**2) >= circular_fill:
-            # a disk: the centroid is its centre; the diameter from the area is unbiased
-            dia = 2 * math.sqrt(area / math.pi)
-            return MomentPose(
-                float(m[0]),
-                float(m[1]),
-                0.0,
-                dia,
-                dia,
-                0,
-                (float(m[0]), float(m[1])),
-                area,
-                ratio,
-                (0.0, 0.0),
-            )
-        # isotropic but not round (a square): the minimum-area rectangle gives the axes
-        pix = np.stack([cols, rows], axis=1).astype(np.float32)
-        (_, _), (_, _), ang = cv2.minAreaRect(pix)
-        alpha = wrap_angle(-math.radians(ang))  # image rows point down: angles flip sign
-        alpha = (alpha + math.pi / 4) % (math.pi / 2) - math.pi / 4
-        u, v, (lx, ly), c = _extents(pts, m, alpha, ppm)
-        return MomentPose(
-            float(c[0]),
-            float(c[1]),
-            float(alpha),
-            float(lx),
-            float(ly),
-            4,
-            (float(m[0]), float(m[1])),
-            area,
-            ratio,
-            (0.0, 0.0),
-        )
-    u, v, (lx, ly), c = _extents(pts, m, alpha, ppm)
-    ix = float((np.count_nonzero(u > 0) - np.count_nonzero(u < 0)) / n)
-    iy = float((np.count_nonzero(v > 0) - np.count_nonzero(v < 0)) / n)
-    if abs(ix) >= direction_tol:
-        sym, flip = 1, ix < 0
-    elif abs(iy) >= direction_tol:
-        sym, flip = 1, iy < 0
-    else:
-        sym, flip = 2, False
-    if flip:
-        alpha += math.pi
-        ix, iy = -ix, -iy
-    alpha = float(wrap_angle(alpha))
-    if sym == 2:
-        alpha = (alpha + math.pi / 2) % math.pi - math.pi / 2
-    return MomentPose(
-        float(c[0]),
-        float(c[1]),
-        alpha,
-        float(lx),
-        float(ly),
-        sym,
-        (float(m[0]), float(m[1])),
-        area,
-        ratio,
-        (ix, iy),
-    )
+        if _circle_fill(d, ppm, area) >= circular_fill:
+            return _disk_pose(m, area, ratio)
+        return _square_pose(cols, rows, pts, m, ppm, area, ratio)
+    return _directed_pose(pts, m, n, alpha, ppm, area, ratio, direction_tol)
 
 
 def angle_error(estimate: float, truth: float, symmetry: int = 1) -> float:

@@ -223,12 +223,12 @@ def test_generate_images_and_train_on_the_folder(tmp_path, capsys):
 
 
 def test_options_for_stages_the_chosen_chain_skips_are_named(capsys):
-    from scenescore.cli.problems import _warn_unused_options
+    from scenescore.cli.problems import warn_unused_options
 
-    _warn_unused_options("p.yaml", {"langevin": {}, "osqp": {"max_iter": 5}}, ["langevin"])
+    warn_unused_options("p.yaml", {"langevin": {}, "osqp": {"max_iter": 5}}, ["langevin"])
     err = capsys.readouterr().err
     assert "p.yaml" in err and "osqp" in err and "langevin" in err.split("used by")[1]
-    _warn_unused_options("p.yaml", {"langevin": {}, "osqp": {}}, ["langevin", "langevin>osqp"])
+    warn_unused_options("p.yaml", {"langevin": {}, "osqp": {}}, ["langevin", "langevin>osqp"])
     assert capsys.readouterr().err == ""
 
 

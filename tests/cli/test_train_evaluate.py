@@ -47,7 +47,7 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
     # the checkpoint carries them too
     from scenescore.models import load
 
-    assert load(ckpt).info["validation"] == val
+    assert load(ckpt).info.validation == val
     # --val 0: no validation; --objects restricts evaluate
     capsys.readouterr()
     assert (

@@ -70,7 +70,7 @@ def test_clip_encoder_loads_saved_weights_and_encodes(tiny_clip):
 @needs_clip
 def test_clip_encoder_in_the_image_pipeline(tiny_clip):
     import scenescore as ss
-    from scenescore.vision import graphs_from_renders
+    from scenescore.vision.graph import graphs_from_renders
 
     _, weights, cfg = tiny_clip
     enc = make_encoder(

@@ -109,7 +109,7 @@ def test_without_the_extra_the_error_names_it(monkeypatch):
 
 def test_efficientnet_in_the_image_pipeline(enc):
     import scenescore as ss
-    from scenescore.vision import graphs_from_renders
+    from scenescore.vision.graph import graphs_from_renders
 
     scene = ss.scenarios.get("dining").generate(1, 0)[0]
     (g,) = graphs_from_renders([scene], encoder=enc)

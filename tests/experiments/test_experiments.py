@@ -9,8 +9,8 @@ import torch
 from scenescore.cli import main
 from scenescore.experiments import heatmap, novel
 from scenescore.heatmap import energy_grid, grid_minimum
+from scenescore.learn import TrainConfig, train
 from scenescore.scenarios import DeskScenario
-from scenescore.training import TrainConfig, train
 
 
 def test_novel_oracle_row_is_near_zero():

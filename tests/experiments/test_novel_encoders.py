@@ -7,7 +7,7 @@ import torch
 from scenescore.cli import main
 from scenescore.encoders import make_encoder
 from scenescore.experiments import novel
-from scenescore.vision import graphs_from_renders
+from scenescore.vision.graph import graphs_from_renders
 
 
 def test_novel_from_images_gives_one_scenescore_row_per_encoder():

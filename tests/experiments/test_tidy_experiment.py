@@ -5,11 +5,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 from scenescore.experiments import tidy as T
+from scenescore.learn import TrainConfig
 from scenescore.sampling import PLACEMENT
 from scenescore.scenarios import get
 from scenescore.solvers.langevin import LangevinOptions
-from scenescore.tidy import TidyOptions
-from scenescore.training import TrainConfig
+from scenescore.tidying import TidyOptions
 
 
 def test_messy_cases_are_feasible_and_rejected_by_the_check():

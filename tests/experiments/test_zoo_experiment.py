@@ -3,8 +3,8 @@
 import pytest
 
 from scenescore.experiments import zoo
+from scenescore.learn import TrainConfig
 from scenescore.scene import SceneError
-from scenescore.training import TrainConfig
 
 TINY = TrainConfig(iterations=3, batch_scenes=4, negatives=2)
 

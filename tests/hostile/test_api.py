@@ -94,7 +94,7 @@ def _lc(**kw):
 
 
 def _tc(**kw):
-    from scenescore.training import TrainConfig
+    from scenescore.learn import TrainConfig
 
     return TrainConfig(**kw)
 
@@ -310,7 +310,7 @@ def test_place_particles_zero_is_refused(model_path):
 
 
 def test_train_refuses_one_object_scenes():
-    from scenescore.training import TrainConfig, train
+    from scenescore.learn import TrainConfig, train
 
     s = Scene.from_dict(dict(SCENE, objects=SCENE["objects"][:1]))
     expect(lambda: train([s, s], TrainConfig(iterations=1), progress=False), SceneError, "no example scene")

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from scenescore.encoders import encode_scene, make_encoder
+from scenescore.learn import check_training_data
 from scenescore.scene import Scene, SceneError
-from scenescore.training import check_training_data
-from scenescore.vision import scenes_from_image_folder
+from scenescore.vision.graph import scenes_from_image_folder
 
 from .helpers import cli_error, expect, with_object, write
 

@@ -13,6 +13,7 @@ ort = pytest.importorskip("onnxruntime")
 
 from scenescore.cli import main  # noqa: E402
 from scenescore.encoders import FootprintEncoder  # noqa: E402
+from scenescore.learn import NetworkConfig, TrainConfig, train  # noqa: E402
 from scenescore.models import ScoreModel  # noqa: E402
 from scenescore.models.export import (  # noqa: E402
     energy_inputs,
@@ -22,7 +23,6 @@ from scenescore.models.export import (  # noqa: E402
     scene_inputs,
 )
 from scenescore.scenarios import get  # noqa: E402
-from scenescore.training import TrainConfig, train  # noqa: E402
 
 TOL = 1e-4
 CPU = ["CPUExecutionProvider"]
@@ -34,7 +34,7 @@ def trained(tmp_path_factory):
     torch.set_num_threads(1)
     scenes = get("zoo-bedroom").generate(6, seed=0)
     cfg = TrainConfig(
-        iterations=3, batch_scenes=4, negatives=4, walls=True, model={"hidden": 16, "layers": 2}
+        iterations=3, batch_scenes=4, negatives=4, walls=True, network=NetworkConfig(hidden=16, layers=2)
     )
     model = train(scenes, cfg, seed=0, progress=False)
     d = tmp_path_factory.mktemp("export")

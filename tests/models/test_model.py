@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from scenescore.encoders import FootprintEncoder
-from scenescore.models import CheckpointError, ScoreModel, load
+from scenescore.models import CheckpointError, ModelInfo, ScoreModel, TidyCalibration, load
 from scenescore.scenarios import DiningScenario
 
 pytestmark = pytest.mark.float_order
@@ -83,10 +83,10 @@ def test_checkpoint_round_trip(tmp_path):
     scene = DiningScenario().generate(1, seed=0)[0]
     st = model.tensors([scene])
     path = tmp_path / "m.ckpt"
-    model.info = {"note": "hello"}
+    model.info = ModelInfo(seed=3, extra={"note": "hello"})
     model.save(path)
     back = load(path)
-    assert back.config == model.config and back.info == {"note": "hello"}
+    assert back.config == model.config and back.info == model.info and back.info.extra == {"note": "hello"}
     assert torch.equal(back.energy(st.poses, st), model.energy(st.poses, st))
     assert not list(tmp_path.glob(".*tmp"))  # the temporary file was renamed away
 
@@ -225,3 +225,43 @@ def test_non_finite_weights_are_refused(tmp_path, value):
     _tamper(path, tensor_edit=poison)
     with pytest.raises(CheckpointError, match=f"weight '{name[0]}' holds NaN or infinite"):
         load(path)
+
+
+def test_model_info_reads_every_stored_key_and_writes_it_back(tmp_path):
+    """A checkpoint's ``info`` as training, validation and tidy's calibration store it: read into named
+    fields (the trust reference and the calibration typed), written back as the same JSON object, keys
+    this version does not know kept; a checkpoint with none of them loads with every field None."""
+    from scenescore.models.checkpoint import read_checkpoint, write_checkpoint
+    from scenescore.models.trust import reference
+
+    model = _model()
+    scenes = DiningScenario().generate(3, seed=0)
+    stored = {
+        "train_config": {"iterations": 5, "model": {"hidden": 16}},
+        "seed": 1,
+        "scenes": 3,
+        "final_loss": 1.5,
+        "chance_loss": 2.8,
+        "seconds": 0.5,
+        "history": [2.0, 1.5],
+        "trust": reference(model, scenes).to_dict(),
+        "validation": {"mean_t_cm": 3.0},
+        "tidy": {"move_gain": 0.5},
+        "note": "hello",
+    }
+    path = tmp_path / "m.ckpt"
+    write_checkpoint(path, model.net.state_dict(), model.config.to_dict(), {"name": "footprint"}, stored)
+    back = load(path)
+    assert back.info.seed == 1 and back.info.history == [2.0, 1.5] and back.info.extra == {"note": "hello"}
+    assert (
+        back.trust is back.info.trust and back.trust is not None and back.trust.to_dict() == stored["trust"]
+    )
+    assert back.info.tidy == TidyCalibration(move_gain=0.5)
+    assert back.info.to_dict() == stored
+    again = tmp_path / "again.ckpt"
+    back.save(again)
+    assert read_checkpoint(again).info == stored
+    assert "trust" not in back.info.training() and back.info.training()["seed"] == 1
+    write_checkpoint(path, model.net.state_dict(), model.config.to_dict(), {"name": "footprint"}, {})
+    bare = load(path).info
+    assert bare == ModelInfo() and bare.trust is None and bare.tidy is None and bare.to_dict() == {}

@@ -10,9 +10,9 @@ import torch
 from conftest import rounding_tolerance
 
 import scenescore as ss
+from scenescore.learn import NetworkConfig, TrainConfig, train
 from scenescore.models.trust import TrustReference, assess, energy_shares
 from scenescore.placement import PLACE, place
-from scenescore.training import TrainConfig, train
 
 SMALL = replace(PLACE, particles=16, candidates=256, chain=replace(PLACE.chain, steps=20, final_descent=10))
 
@@ -22,7 +22,7 @@ def dining():
     torch.set_num_threads(1)
     sc = ss.scenarios.get("dining")
     tr, te = sc.generate(12, 3), sc.generate(4, 4)
-    cfg = TrainConfig(iterations=40, batch_scenes=6, negatives=6, model={"hidden": 16, "layers": 2})
+    cfg = TrainConfig(iterations=40, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2))
     return train(tr, cfg, seed=0, progress=False, validation=te), tr, te
 
 
@@ -214,7 +214,7 @@ def test_trusted_first_prefers_a_particle_off_the_bounds(dining):
     assert first.objective >= plain.objective  # it gave up cost to stay where the data has bowls
     # the same population either way: only the answer differs
     assert np.array_equal(plain.samples, first.samples)
-    pinned = problem.untrusted(torch.as_tensor(first.samples))
+    pinned = problem.doubted(torch.as_tensor(first.samples))
     assert 0 < int(pinned.sum()) < 16 and bool(pinned[int(np.argmin(first.sample_costs))])
     assert f"{int(pinned.sum())} of 16 particles put an object where its data has none" in first.message
     assert not plain.message

@@ -9,9 +9,9 @@ import pytest
 import torch
 
 import scenescore as ss
+from scenescore.learn import NetworkConfig, TrainConfig, stands_against_walls, train
 from scenescore.models.batching import wall_objects
 from scenescore.models.network import WALLS, edge_features, wall_nodes
-from scenescore.training import TrainConfig, stands_against_walls, train
 
 pytestmark = pytest.mark.float_order
 
@@ -57,7 +57,7 @@ def test_training_decides_walls_from_the_data():
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
     assert stands_against_walls(lounge) and not stands_against_walls(dining)
-    cfg = TrainConfig(iterations=2, batch_scenes=4, negatives=2, model={"hidden": 8, "layers": 1})
+    cfg = TrainConfig(iterations=2, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1))
     assert train(lounge, cfg, seed=0, progress=False).config.walls
     assert not train(dining, cfg, seed=0, progress=False).config.walls
     from dataclasses import replace
@@ -157,7 +157,7 @@ def test_training_reads_walls_as_lines_by_default_and_only_with_walls():
 
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
-    cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, model={"hidden": 8, "layers": 1})
+    cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1))
     m = train(lounge, cfg, seed=0, progress=False)
     assert m.config.wall_lines and m.config.wall_range is None  # the defaults: lines, linear
     boxes = replace(cfg, wall_lines=False)

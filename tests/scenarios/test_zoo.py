@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
-from scenescore.scenarios import _REGISTRY, ZOO, get
+from scenescore.scenarios import ZOO, available, get
 from scenescore.scenarios.zoo import (
+    SCENARIOS,
     BanquetScenario,
     BedroomScenario,
     BookshelfScenario,
@@ -60,7 +61,8 @@ def _extent(o):
 
 def test_zoo_registered():
     assert len(ZOO) >= 8 and len(set(ZOO)) == len(ZOO)
-    assert {k for k in _REGISTRY if k.startswith("zoo-")} == set(ZOO)
+    assert {k for k in available() if k.startswith("zoo-")} == set(ZOO)
+    assert ZOO == tuple(SCENARIOS) and all(cls.name == name for name, cls in SCENARIOS.items())
     for name in ZOO:
         sc = get(name)
         assert sc.name == name

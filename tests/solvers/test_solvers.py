@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+from dataclasses import fields
+
 import numpy as np
 import pytest
 import torch
 
 import scenescore as ss
 from scenescore.costs import Bounds, CostFn, HingeCollision, PoseTarget
+from scenescore.errors import ConfigError
 from scenescore.problem import Problem, ProblemError
+from scenescore.sampling import LangevinConfig
 from scenescore.scene import Scene, SceneObject
-from scenescore.solvers import available, get, solve
+from scenescore.solvers import available, get, option_names, solve
 from scenescore.solvers.projection import LinearisedProjection, project_cvxpy
+from scenescore.solvers.sqp import SQPOptions
 
 pytestmark = pytest.mark.float_order
 
@@ -136,6 +141,24 @@ def test_registry_and_errors():
     with pytest.raises(ProblemError, match=r"init: expected poses of shape \(N, 3\)"):
         solve(_problem(), "osqp", init=np.zeros((3, 3)))
     assert get("langevin>osqp").name == "langevin>osqp"
+
+
+def test_option_names_are_read_from_each_solvers_options_class():
+    assert option_names("osqp") == sorted(f.name for f in fields(SQPOptions))
+    langevin = option_names("langevin")
+    assert langevin is not None and {"steps", "particles", "proposals", "trusted_first"} <= set(langevin)
+    assert "chain" not in langevin and {f.name for f in fields(LangevinConfig)} <= set(langevin)
+    with pytest.raises(ProblemError, match="unknown option 'qp_eps'.*did you mean 'qp_eps_"):
+        get("osqp", qp_eps=1e-3)
+
+
+def test_osqp_tolerances_are_options():
+    o = SQPOptions()
+    assert (o.qp_eps_abs, o.qp_eps_rel, o.qp_max_iter, o.penalty_init) == (1e-6, 1e-6, 4000, 10.0)
+    with pytest.raises(ConfigError, match="qp_max_iter"):
+        SQPOptions(qp_max_iter=0)
+    r = solve(_problem(), "osqp", options={"osqp": {"qp_max_iter": 50, "qp_eps_abs": 1e-5}})
+    assert r.status in ("converged", "max_iterations")
 
 
 def test_failures_report_status_and_the_violated_constraint():

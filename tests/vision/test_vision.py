@@ -19,15 +19,13 @@ from scenescore.vision import (
     Detection,
     GroundTruthDetector,
     angle_error,
-    graphs_from_renders,
     pose_from_mask,
     rectify_crop,
     render_object,
     render_scene,
-    scene_from_image,
-    scenes_from_image_folder,
     write_rendered_dataset,
 )
+from scenescore.vision.graph import graphs_from_renders, scene_from_image, scenes_from_image_folder
 from scenescore.vision.render import pixel_to_world
 
 BOUNDS = ((-0.3, -0.3), (0.3, 0.3))

@@ -1,0 +1,94 @@
+"""Guides: cost terms that also have an opinion on candidate poses, beyond their value.
+
+A term that subclasses :class:`Guide` beside :class:`~scenescore.costs.base.Cost` may *propose*
+candidate poses (solvers screen them beside uniform draws), *doubt* pose sets (solvers that are asked
+to rank the doubted ones after the others do so before they rank by cost), and give each moving
+object a *verdict* (a confidence and the reasons to doubt it, reported with every result). Each
+method's default says nothing, so a guide overrides only what it knows.
+
+Solvers and problems ask a whole cost through the functions of this module (:func:`propose`,
+:func:`doubts`, :func:`verdicts`, :func:`doubt_note`), which ask the sum's guiding terms in order;
+they need not know what a guide bases its opinion on. The learned energy
+(:class:`~scenescore.costs.energy.LearnedEnergy`) is a guide by its model's trust reference: the
+poses its training data has.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .base import Sum
+
+__all__ = ["Guide", "Verdict", "guides", "propose", "doubts", "verdicts", "doubt_note"]
+
+
+class Verdict(Protocol):
+    """A guide's verdict on one moving object: a confidence in [0, 1] and the reasons to doubt the
+    object's pose (none: nothing to doubt)."""
+
+    confidence: float
+    flags: list[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"confidence": ..., "flags": [...]}`` for a result's JSON."""
+        ...
+
+
+class Guide:
+    """A cost term's opinion on candidate poses; mixed into a :class:`~scenescore.costs.base.Cost`."""
+
+    #: what a doubted row does, completing "<k> of <B> particles ..." in a solver's message
+    doubt_note: str = "are doubted by a term of the cost"
+
+    def propose(self, x: Tensor, generator: torch.Generator) -> Tensor | None:
+        """Candidate poses: ``x (B, N, 3)`` with some moving objects put where this term expects them,
+        drawn by ``generator``; None: no proposal."""
+        return None
+
+    def doubts(self, poses: Tensor) -> Tensor | None:
+        """The rows of ``poses (B, N, 3)`` this term doubts, ``(B,)`` bool; None: no opinion."""
+        return None
+
+    def verdicts(self, poses: np.ndarray) -> Mapping[str, Verdict]:
+        """A verdict on each moving object this term judges at one pose set ``(N, 3)``, by name."""
+        return {}
+
+
+def guides(cost: Sum) -> list[Guide]:
+    """The terms of ``cost`` that are guides, in the sum's order."""
+    return [c for _, c in cost if isinstance(c, Guide)]
+
+
+def propose(cost: Sum, x: Tensor, generator: torch.Generator) -> Tensor | None:
+    """Candidates for ``x (B, N, 3)``: each guide in turn proposes from the one before's proposal (the
+    first from ``x``); None when no guide proposes."""
+    out = None
+    for g in guides(cost):
+        y = g.propose(x if out is None else out, generator)
+        out = y if y is not None else out
+    return out
+
+
+def doubts(cost: Sum, poses: Tensor) -> Tensor | None:
+    """The rows ``(B,)`` that any guide of ``cost`` doubts; None when no guide has an opinion."""
+    flags = [d for g in guides(cost) if (d := g.doubts(poses)) is not None]
+    if not flags:
+        return None
+    return torch.stack(flags, dim=-1).any(-1)
+
+
+def verdicts(cost: Sum, poses: np.ndarray) -> dict[str, Verdict]:
+    """Every guide's verdicts at one pose set ``(N, 3)``, by object name (a later guide's verdict on
+    an object replaces an earlier one's)."""
+    return {k: v for g in guides(cost) for k, v in g.verdicts(poses).items()}
+
+
+def doubt_note(cost: Sum) -> str:
+    """What a row that ``cost``'s guides doubt does, for a solver's message (see :attr:`Guide.doubt_note`)."""
+    notes = list(dict.fromkeys(g.doubt_note for g in guides(cost)))
+    return " or ".join(notes) if notes else Guide.doubt_note

@@ -1,0 +1,51 @@
+"""Where a model cache keeps a trained model: one file per training, named by what decides its weights.
+
+``train(..., cache=folder)`` loads the model from there when it was trained before, else trains it and
+keeps it there. ``scenescore experiment all`` passes one folder to every experiment, so a model two
+experiments train alike is trained once; the folder lives as long as the run, so no model of another
+version of the code is ever read.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import torch
+
+from ..encoders import Encoder
+from ..scene import Scene
+from .config import TrainConfig
+
+__all__ = ["cached_path"]
+
+
+def cached_path(
+    folder: str | os.PathLike | None,
+    scenes: Sequence[Scene],
+    cfg: TrainConfig,
+    encoder: Encoder | None,
+    seed: int,
+    validation: Sequence[Scene],
+    device: torch.device,
+) -> Path | None:
+    """The file in ``folder`` for the model of this training: the same scenes, validation scenes,
+    settings, seed, device and torch thread count. None without a folder, and with an encoder given (a
+    model of another encoder is not kept)."""
+    if folder is None or encoder is not None:
+        return None
+    what = {
+        "scenes": [s.to_dict() for s in scenes],
+        "validation": [s.to_dict() for s in validation],
+        "config": cfg.to_dict(),
+        "seed": int(seed),
+        "device": str(device),
+        # the thread count changes the trained weights (float rounding): a model trained in the main
+        # process's threads is not the one a one-thread worker would train
+        "threads": torch.get_num_threads(),
+    }
+    key = hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
+    return Path(folder) / f"{key}.ckpt"

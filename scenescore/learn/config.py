@@ -1,0 +1,209 @@
+"""Training settings (:class:`TrainConfig`, the network's own in :class:`NetworkConfig`) and the one
+place where the settings the data decides are worked out (:func:`derive`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from types import MappingProxyType
+from typing import Any, Literal
+
+from ..encoders import Encoder, FootprintEncoder
+from ..errors import ConfigError, check_number
+from ..models.network import Activation, EnergyConfig
+from ..sampling import TRAINING, LangevinConfig
+from ..scene import Scene
+from .data import data_scale, stands_against_walls
+
+__all__ = ["NetworkConfig", "TrainConfig", "RAW_EDGES", "Derived", "derive"]
+
+
+@dataclass
+class NetworkConfig:
+    """The energy network's architecture (the :class:`~scenescore.models.network.EnergyConfig` fields
+    that neither the data nor the training settings below decide); the defaults are the paper's sizes."""
+
+    embed_dim: int = 32
+    hidden: int = 32
+    edge_hidden: int | None = None  # width inside the message MLP f (None: hidden)
+    layers: int = 3
+    message: Literal["mlp", "linear"] = "mlp"  # "linear": the paper's single linear layer
+    activation: Activation = "silu"  # the paper's is "leaky_relu"; smooth helps second-order solvers
+    absolute: bool = False  # the "Abs" ablation: absolute poses in the nodes, no edge features
+
+    def __post_init__(self) -> None:
+        EnergyConfig(feat_dim=1, **asdict(self))  # the network's own checks, before any data is read
+
+
+@dataclass
+class TrainConfig:
+    """Training settings; the defaults work for about 50 scenes of up to a dozen objects."""
+
+    iterations: int = 600
+    batch_scenes: int = 16
+    negatives: int = 16  # counter-examples per scene
+    chain_steps: int = 6  # Langevin steps each persistent chain advances per iteration
+    restart: float = 0.1  # fraction of chains restarted from uniform each iteration
+    # each chain follows this schedule from its (re)start: coarse moves first, then fine ones
+    chain: LangevinConfig = TRAINING
+    perturbed: int = 0  # extra counter-examples: one object's true pose moved by noise of a random scale
+    # log-uniform range of the position noise's std (length scales)
+    perturb_pos: tuple[float, float] = (0.05, 2.0)
+    perturb_angle: tuple[float, float] = (0.03, 1.5)  # log-uniform range of the angle noise's std (rad)
+    # extra counter-examples: one movable object put at the pose relative to another object (not its
+    # nearest) that it has to its nearest neighbour: a relation of the data on the wrong anchor (a book at
+    # the row's far end instead of its place in the row)
+    reanchored: int = 8
+    # fraction of restarted chains that start from such a pose (one object on the wrong anchor, it alone
+    # moving) halfway through their schedule, instead of from uniform: the chain relaxes it into the
+    # nearest hard counter-example (flush to the wall, at the row's far end)
+    reanchor_restart: float = 0.5
+    # noise on every node input, fresh per object and iteration, so that the energy leans on geometry more
+    # than on exact features, which carries it to objects it never saw (Table 2): Gaussian noise of std
+    # feature_noise on the encoder's vector, and of std size_noise length scales on the scale descriptor
+    # (the footprint's size as the network reads it; without it the network with its edge encoder orders
+    # unseen objects by their width)
+    feature_noise: float = 0.6
+    size_noise: float = 0.3
+    full_fraction: float = 0.3  # chains moving every object
+    single_fraction: float = 0.5  # chains moving one object (the rest: a random subset)
+    lr: float = 2e-3
+    lr_final: float = 2e-4  # cosine decay to this
+    weight_decay: float = 0.0  # AdamW's decoupled weight decay
+    energy_reg: float = 1e-3  # small L2 on energies, keeps them bounded
+    grad_penalty: float = 0.0  # optional penalty on the energy's gradient norm at counter-examples
+    grad_margin: float = 10.0
+    network: NetworkConfig = field(default_factory=NetworkConfig)  # widths, message, activation, Abs
+    # lengths in the data's own unit, stored in the checkpoint: None derives them (see data_scale);
+    # a number (metres; for edge_range, length scales) sets them by hand
+    length_scale: float | None = None
+    edge_range: float | None = None
+    # derive edge_range from the data (False: linear edge positions). Off by default: saturated offsets
+    # placed Table 2's unseen spoons far off on one seed
+    saturate_edges: bool = False
+    # the bounds' sides as fixed objects in every graph; None: when the data stands against them
+    walls: bool | None = None
+    # with walls: walls as lines (see EnergyConfig.wall_lines): no edge reads where along a wall an
+    # object stands. Read as boxes, the four walls add up to ramps across the room that pull objects away
+    # from their places (benchmarks/wall_pull.py); False reads them as boxes
+    wall_lines: bool = True
+    # with walls: length scales beyond which the offsets on an edge touching a wall saturate, each axis
+    # on its own (EnergyConfig.wall_range); None: linear
+    wall_range: float | None = None
+    # round disks' headings ignored by the energy: their headings in the data are arbitrary, and a network
+    # that sees them learns noise
+    round_invariant: bool = True
+    # width of the network's edge encoder (see EnergyConfig.edge_encoder); None: the raw edge features,
+    # which leave the energy flat around the truth in larger rooms
+    edge_encoder: int | None = 32
+    # evaluate each batch in groups of similar object counts, each cropped to its own largest (the same
+    # energies; fewer padded edges where 4 and 24 objects share a batch); False: one padded pass
+    group_sizes: bool = True
+    # the trained model is the exponential moving average of the weights with this decay, taken over the
+    # second half of training (0: the last iterate, whose noise the average smooths out); a short run's
+    # decay is lowered to 1 - 3 / (its averaged iterations), so that the weights of the average's first
+    # iteration weigh at most e^-3 (0.99 from 600 iterations)
+    average: float = 0.99
+
+    def __post_init__(self) -> None:
+        if isinstance(self.chain, dict):
+            self.chain = LangevinConfig(**self.chain)
+        if isinstance(self.network, dict):
+            self.network = NetworkConfig(**self.network)
+        own = "TrainConfig"
+        check_number(own, "iterations", self.iterations, 1, 10_000_000, integer=True)
+        for name in ("batch_scenes", "negatives", "chain_steps"):
+            check_number(own, name, getattr(self, name), 1, 100_000, integer=True)
+        check_number(own, "perturbed", self.perturbed, 0, 100_000, integer=True)
+        check_number(own, "reanchored", self.reanchored, 0, 100_000, integer=True)
+        if self.edge_encoder is not None:
+            check_number(own, "edge_encoder", self.edge_encoder, 1, 8192, integer=True)
+        for name in ("restart", "full_fraction", "single_fraction", "reanchor_restart", "average"):
+            check_number(own, name, getattr(self, name), 0, 1)
+        if self.average == 1:
+            raise ConfigError(f"{own}: average: expected a decay below 1 (0: no averaging), got 1")
+        if self.full_fraction + self.single_fraction > 1:
+            raise ConfigError(
+                f"{own}: full_fraction + single_fraction: expected at most 1, got "
+                f"{self.full_fraction} + {self.single_fraction}"
+            )
+        check_number(own, "lr", self.lr, 0, open_lo=True)
+        for name in (
+            "lr_final",
+            "weight_decay",
+            "energy_reg",
+            "grad_penalty",
+            "grad_margin",
+            "feature_noise",
+            "size_noise",
+        ):
+            check_number(own, name, getattr(self, name), 0)
+        for name in ("length_scale", "edge_range", "wall_range"):
+            if getattr(self, name) is not None:
+                check_number(own, name, getattr(self, name), 0, open_lo=True)
+        if not isinstance(self.chain, LangevinConfig):
+            raise ConfigError(f"{own}: chain: expected a LangevinConfig or a dict of its fields")
+        if not isinstance(self.network, NetworkConfig):
+            raise ConfigError(f"{own}: network: expected a NetworkConfig or a dict of its fields")
+        for name in ("saturate_edges", "round_invariant", "group_sizes", "wall_lines"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{own}: {name}: expected true or false, got {getattr(self, name)!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+#: the network without its edge encoder, with the training settings that suit it (less feature noise,
+#: none on sizes, no re-anchored counter-examples): ``TrainConfig(**RAW_EDGES)``
+RAW_EDGES: Mapping[str, Any] = MappingProxyType(
+    {"edge_encoder": None, "feature_noise": 0.3, "size_noise": 0.0, "reanchored": 0, "reanchor_restart": 0.0}
+)
+
+
+@dataclass(frozen=True)
+class Derived:
+    """The settings of one training run that follow from its :class:`TrainConfig` and its data."""
+
+    encoder: Encoder  # the encoder the model keeps (a footprint encoder reads sizes in the data's unit)
+    energy: EnergyConfig  # the network, its lengths in the data's unit
+    batch_scenes: int  # scenes per iteration: the setting, at most the data's
+    chain: LangevinConfig  # each persistent chain's schedule, without a final descent
+    averaged_from: int  # the first iteration in the weights' moving average
+    decay: float  # the moving average's decay (0: the last iterate)
+    candidates: int  # what InfoNCE tells each true scene apart from, the scene itself included
+
+
+def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = None) -> Derived:
+    """Everything a run of ``cfg`` on ``scenes`` decides from the data or from other settings: the length
+    scale (the data's unless set), the edge range (the data's largest offset with ``saturate_edges``),
+    the walls (where the data stands against its bounds, unless set) and the wall settings that apply
+    only with them, the encoder reading sizes in the data's unit, the batch, the chains' schedule and
+    the averaging."""
+    length, far = data_scale(scenes)
+    length = cfg.length_scale or length
+    reach = cfg.edge_range or (far if cfg.saturate_edges else None)
+    encoder = encoder or FootprintEncoder()
+    if isinstance(encoder, FootprintEncoder):
+        encoder = encoder.scaled(length)  # sizes in the data's unit
+    walls = cfg.walls if cfg.walls is not None else stands_against_walls(scenes)
+    energy = EnergyConfig(
+        feat_dim=encoder.dim,
+        **asdict(cfg.network),
+        length_scale=length,
+        edge_range=reach,
+        walls=bool(walls),
+        round_invariant=cfg.round_invariant,
+        edge_encoder=cfg.edge_encoder,
+        wall_range=cfg.wall_range if walls else None,
+        wall_lines=cfg.wall_lines and bool(walls),
+    )
+    averaged_from = cfg.iterations // 2
+    return Derived(
+        encoder=encoder,
+        energy=energy,
+        batch_scenes=min(cfg.batch_scenes, len(scenes)),
+        chain=replace(cfg.chain, final_descent=0),
+        averaged_from=averaged_from,
+        decay=max(min(cfg.average, 1 - 3 / max(cfg.iterations - averaged_from, 1)), 0.0),
+        candidates=cfg.negatives + cfg.perturbed + cfg.reanchored + 1,
+    )

@@ -1,0 +1,243 @@
+"""Training the energy with InfoNCE against Langevin counter-examples (:func:`train`).
+
+Each iteration draws a batch of scenes, puts noise on their node inputs, advances their persistent
+counter-example chains a few steps (:class:`~scenescore.learn.negatives.ChainBuffer`), scores the true
+scenes against those and the other counter-examples, and takes one optimiser step on the loss
+(:func:`~scenescore.learn.losses.training_loss`). The trained model is the moving average of the weights
+over the second half of training.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import torch
+from tqdm.auto import tqdm
+
+from ..devices import draw, generator, resolve_device
+from ..encoders import Encoder
+from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
+from ..models.trust import reference
+from ..scene import Scene
+from ..threads import threads_for, torch_threads
+from .cache import cached_path
+from .config import Derived, TrainConfig, derive
+from .data import check_training_data
+from .logs import summary_writer
+from .losses import ABSENT, training_loss
+from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
+from .size_groups import SizeGroups
+
+__all__ = ["train", "fit", "moving_average"]
+
+
+def train(
+    scenes: Sequence[Scene],
+    config: TrainConfig | None = None,
+    encoder: Encoder | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    validation: Sequence[Scene] = (),
+    log_dir: str | os.PathLike | None = None,
+    device: str | torch.device | None = None,
+    cache: str | os.PathLike | None = None,
+) -> ScoreModel:
+    """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
+
+    ``validation``: held-out scenes (not trained on) whose energies become the trust reference that
+    placements are judged against; without them the training scenes' energies are used.
+    ``log_dir``: write a TensorBoard log there, every iteration's loss (``train/loss``, the InfoNCE loss
+    with its regularisers; ``train/infonce`` alone) and learning rate (``train/lr``);
+    :func:`~scenescore.learn.logs.log_validation` adds an evaluation's figures to it.
+    ``device`` (default the CPU): where the model trains and stays; its weights start the same on every
+    device (drawn on the CPU), its counter-examples' random numbers come from a generator there.
+    ``cache``: a folder where the model is kept, and loaded from instead of trained when the same
+    training ran before (:mod:`scenescore.learn.cache`; not with an ``encoder`` or a ``log_dir``).
+
+    This is the training alone; :func:`scenescore.learn.workflow.train_model` (``ss.train``) also holds
+    scenes out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
+    """
+    cfg = config or TrainConfig()
+    dev = resolve_device(device)
+    check_training_data(scenes)
+    cached = cached_path(cache, scenes, cfg, encoder, seed, validation, dev) if log_dir is None else None
+    if cached is not None and cached.exists():
+        return load(cached, device=dev)
+    writer = summary_writer(log_dir) if log_dir is not None else None
+    try:
+        with torch_threads(1):  # tiny tensors; the training loop chooses threads for its batch
+            model = fit(scenes, cfg, encoder, seed, progress, validation, writer, dev)
+    finally:
+        if writer is not None:
+            writer.close()
+    if cached is not None:
+        Path(cached).parent.mkdir(parents=True, exist_ok=True)
+        model.save(cached)  # atomic: a worker training the same model at once writes the same file
+    return model
+
+
+def fit(
+    scenes: Sequence[Scene],
+    cfg: TrainConfig,
+    encoder: Encoder | None,
+    seed: int,
+    progress: bool,
+    validation: Sequence[Scene],
+    writer: Any,
+    device: torch.device,
+) -> ScoreModel:
+    """The training itself, on data :func:`train` checked: a new model, trained, its weights averaged,
+    its :class:`~scenescore.models.ModelInfo` filled (``writer``: a TensorBoard writer, or None)."""
+    torch.manual_seed(seed)
+    gen = generator(seed, device)
+    d = derive(cfg, scenes, encoder)
+    model = ScoreModel(EnergyNet(d.energy), d.encoder).to(device)
+    data = model.tensors(scenes)
+    buf = ChainBuffer(data, cfg.negatives, cfg, gen)
+    opt = torch.optim.AdamW(model.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(
+        opt, T_max=max(cfg.iterations, 1), eta_min=cfg.lr_final
+    )
+    history: list[float] = []
+    shadow: list[torch.Tensor] | None = None  # the weights' moving average (TrainConfig.average)
+    t0 = time.perf_counter()
+    bar = tqdm(range(cfg.iterations), desc="train", disable=not progress, unit="it", dynamic_ncols=True)
+    for it in bar:
+        # the chains and the loss run on batch * negatives pose sets: threads chosen for that batch
+        # (re-chosen every iteration, so a machine that gets busy mid-run is met with fewer), restored after
+        with torch_threads(threads_for(d.batch_scenes * cfg.negatives)):
+            loss, infonce = _loss(model, cfg, d, data, buf, gen, device)
+            if not torch.isfinite(loss):
+                raise FloatingPointError(
+                    f"train: loss became {loss.item()} at iteration {it}; lower TrainConfig.lr"
+                )
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.net.parameters(), 10.0)
+            opt.step()
+            if writer is not None:
+                writer.add_scalar("train/loss", loss.item(), it)
+                writer.add_scalar("train/infonce", infonce.item(), it)
+                writer.add_scalar("train/lr", opt.param_groups[0]["lr"], it)
+            sched.step()
+            if d.decay and it >= d.averaged_from:
+                shadow = moving_average(shadow, list(model.net.parameters()), d.decay)
+            history.append(loss.item())
+            if it % 20 == 0:
+                bar.set_postfix(loss=f"{sum(history[-20:]) / len(history[-20:]):.3f}")
+    model.net.eval()
+    if shadow is not None:
+        with torch.no_grad():
+            for p, a in zip(model.net.parameters(), shadow, strict=True):
+                p.copy_(a)
+    model.info = ModelInfo(
+        train_config=cfg.to_dict(),
+        seed=seed,
+        scenes=len(scenes),
+        final_loss=float(sum(history[-50:]) / max(len(history[-50:]), 1)),
+        chance_loss=math.log(d.candidates),
+        seconds=round(time.perf_counter() - t0, 2),
+        # the learning curve: the mean loss over each block of 10 iterations
+        history=[
+            round(sum(history[i : i + 10]) / len(history[i : i + 10]), 4) for i in range(0, len(history), 10)
+        ],
+    )
+    model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
+    return model
+
+
+def _loss(
+    model: ScoreModel,
+    cfg: TrainConfig,
+    d: Derived,
+    data: SceneTensors,
+    buf: ChainBuffer,
+    gen: torch.Generator,
+    device: torch.device,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """One iteration's ``(loss, infonce)``: a batch drawn with noise on its inputs, its chains advanced
+    (with the network in eval mode), the true scenes scored against every counter-example."""
+    k = cfg.negatives
+    rows, batch = _batch(cfg, data, buf, gen, device, d.batch_scenes, model.config.length_scale)
+    rep = batch.repeat(k)  # (batch * k, ...)
+    sizes = SizeGroups(batch.mask.sum(dim=1), cfg.group_sizes)
+    model.net.eval()
+    energy = sizes.bound(model, rep, k)
+    neg = buf.advance(rows, energy, rep, d.chain, cfg.chain_steps)
+    model.net.train()
+    e_pos = sizes.bound(model, batch)(batch.poses)
+    e_neg, e_real = _counter_energies(model, cfg, batch, sizes, energy(neg), gen)
+    return training_loss(cfg, model, e_pos, e_neg, e_real, neg, rep)
+
+
+def _batch(
+    cfg: TrainConfig,
+    data: SceneTensors,
+    buf: ChainBuffer,
+    gen: torch.Generator,
+    device: torch.device,
+    size: int,
+    length_scale: float,
+) -> tuple[torch.Tensor, SceneTensors]:
+    """``size`` scenes drawn for one iteration: their rows of ``data`` and their tensors with noise on
+    the features and the sizes; a share (``cfg.restart``) of their chains restarted first."""
+    count = data.mask.shape[0]
+    rows = torch.randperm(count, generator=gen, device=gen.device).to(device)[:size]
+    buf.restart(
+        (draw("rand", (count, cfg.negatives), gen, device) < cfg.restart)
+        & torch.isin(torch.arange(count, device=device), rows)[:, None]
+    )
+    batch = data.index(rows)
+    if cfg.feature_noise:
+        noise = draw("randn", tuple(batch.feats.shape), gen, device, batch.feats.dtype)
+        noise = noise * cfg.feature_noise
+        batch = replace(batch, feats=batch.feats + noise)
+    if cfg.size_noise:
+        noise = draw("randn", tuple(batch.sizes.shape), gen, device, batch.sizes.dtype)
+        batch = replace(batch, sizes=batch.sizes + noise * (cfg.size_noise * length_scale))
+    return rows, batch
+
+
+def _counter_energies(
+    model: ScoreModel,
+    cfg: TrainConfig,
+    batch: SceneTensors,
+    sizes: SizeGroups,
+    e_chain: torch.Tensor,
+    gen: torch.Generator,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(e_neg (B, K'), e_real)``: the chains' energies ``e_chain (B * K,)`` with those of the perturbed
+    and the re-anchored counter-examples beside them, and the energies of those that are there (a scene
+    too small to re-anchor an object in scores :data:`~scenescore.learn.losses.ABSENT` there)."""
+    bs = batch.mask.shape[0]
+    e_neg = e_chain.reshape(bs, cfg.negatives)
+    if cfg.perturbed:
+        pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
+        e_pert = sizes.bound(model, batch.repeat(cfg.perturbed), cfg.perturbed)(pert)
+        e_neg = torch.cat([e_neg, e_pert.reshape(bs, cfg.perturbed)], dim=1)
+    e_real = e_neg.flatten()  # the counter-examples that are there, for the energies' L2
+    if cfg.reanchored:
+        poses, moved = reanchored_negatives(batch, cfg.reanchored, gen)
+        e_move = sizes.bound(model, batch.repeat(cfg.reanchored), cfg.reanchored)(poses)
+        e_move, valid = e_move.reshape(bs, cfg.reanchored), moved.any(dim=1).reshape(bs, cfg.reanchored)
+        e_neg = torch.cat([e_neg, e_move.masked_fill(~valid, ABSENT)], dim=1)
+        e_real = torch.cat([e_real, e_move[valid]])
+    return e_neg, e_real
+
+
+@torch.no_grad()
+def moving_average(
+    shadow: list[torch.Tensor] | None, params: list[torch.Tensor], decay: float
+) -> list[torch.Tensor]:
+    """One step of the weights' exponential moving average (started from the weights themselves)."""
+    if shadow is None:
+        return [p.detach().clone() for p in params]
+    for a, p in zip(shadow, params, strict=True):
+        a.mul_(decay).add_(p.detach(), alpha=1 - decay)
+    return shadow
