@@ -21,3 +21,18 @@ def test_python_snippets_run(doc, capsys):
     for code in blocks:
         exec(compile(code, f"{doc}:snippet", "exec"), {"__name__": "snippet"})
     assert "solver langevin>casadi" in capsys.readouterr().out
+
+
+ROOT = DOCS.parent
+
+
+@pytest.mark.parametrize("page", ["README.md", *sorted(p.name for p in DOCS.glob("*.md"))])
+def test_relative_links_name_files_that_exist(page):
+    """A Markdown link that is not a URL or an anchor names a file of the repository (README) or of
+    docs/ (the site's pages, which `mkdocs build --strict` checks too)."""
+    path = ROOT / page if page == "README.md" else DOCS / page
+    prose = re.sub(r"```.*?```|`[^`\n]*`", "", path.read_text(), flags=re.S)  # links in code are code
+    for target in re.findall(r"\]\(([^)\s]+)\)", prose):
+        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+            continue
+        assert (path.parent / target.split("#")[0]).exists(), f"{page}: link to missing {target}"
