@@ -172,9 +172,33 @@ class EvalReport:
         )
         return "\n".join(lines)
 
+    def warnings(self) -> list[str]:
+        """What the figures say the model has not learned: a held-out loss not below chance (the model
+        tells held-out arrangements from counter-examples no better than a constant energy), and each
+        category placed no better than the nearest-neighbour baseline."""
+        out = []
+        if not self.heldout_loss < self.chance_loss:
+            out.append(
+                f"the held-out InfoNCE loss ({self.heldout_loss:.3f}) is not below chance "
+                f"({self.chance_loss:.3f}): the model does not tell held-out arrangements from "
+                "counter-examples; train on more scenes, or check that the held-out scenes follow the same rules"
+            )
+        for c in self.categories:
+            if (
+                c.baseline_t_cm is not None
+                and math.isfinite(c.baseline_t_cm)
+                and not c.t_cm < c.baseline_t_cm
+            ):
+                out.append(
+                    f"{c.category}: held-out error {c.t_cm:.2f} cm, no better than nearest neighbour's "
+                    f"{c.baseline_t_cm:.2f} cm"
+                )
+        return out
+
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d.pop("examples")
+        d["warnings"] = self.warnings()
         return d
 
 

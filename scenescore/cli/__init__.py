@@ -16,7 +16,19 @@ if TYPE_CHECKING:
     import torch
 
 # modules of this package that add sub-commands, in the order --help lists them
-COMMAND_MODULES = ["demo", "data", "evaluate", "place", "tidy", "experiment", "problems", "heatmap", "export"]
+COMMAND_MODULES = [
+    "demo",
+    "data",
+    "evaluate",
+    "place",
+    "tidy",
+    "experiment",
+    "problems",
+    "heatmap",
+    "export",
+    "inspect_model",
+    "info",
+]
 
 
 class UserError(Exception):
@@ -87,6 +99,11 @@ def number(
 
 
 SEED = number(-(2**63), 2**63 - 1, integer=True)  # what torch's generators take
+# the ranges of the command line's counts: more than the upper bound is a typo, not a plan
+ITERATIONS = number(1, 10_000_000, integer=True)  # training iterations (TrainConfig's range)
+SEEDS = number(1, 10_000, integer=True)  # runs over seeds seed .. seed+N-1
+JOBS = number(1, 1024, integer=True)  # worker processes
+SCENES = number(1, 1_000_000, integer=True)  # scenes to generate or test on
 
 
 def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None = None) -> None:
@@ -112,8 +129,8 @@ def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None 
 
 
 def add_device(p: argparse.ArgumentParser) -> None:
-    """``--device`` (the commands that run a model: train, place, solve, compare, experiment); read it
-    with :func:`device_of`."""
+    """``--device`` (the commands that run a model: train, evaluate, place, tidy, heatmap, demo, solve,
+    compare, experiment); read it with :func:`device_of`."""
     p.add_argument(
         "--device",
         default="cpu",

@@ -5,15 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..learn import (
-    RAW_EDGES,
-    VALIDATION_FRACTION,
-    NetworkConfig,
-    TrainConfig,
-    check_training_data,
-    require_tensorboard,
-)
-from . import UserError, add_common, add_device, device_of, number
+from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
+from . import ITERATIONS, SCENES, UserError, add_common, add_device, device_of, number
+from .train_settings import build_config, parse_overrides, read_config
 
 PPM = number(0, open_lo=True)  # pixels per metre
 
@@ -32,7 +26,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("scenario", help="scenario name (see `scenescore generate --list`)", nargs="?")
-    p.add_argument("--n", type=int, default=48, help="number of scenes (default 48)")
+    p.add_argument("--n", type=SCENES, default=48, help="number of scenes (default 48)")
     p.add_argument("--out", type=Path, help="output .jsonl file")
     p.add_argument(
         "--images", type=Path, default=None, help="also render top-down images (and a JSON per image) here"
@@ -51,11 +45,23 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
             "Train the SceneScore energy (InfoNCE with Langevin counter-examples) on a .jsonl of scenes "
             "or a folder of top-down images."
         ),
+        epilog=(
+            "Training settings: every TrainConfig field can be set with --set KEY=VALUE or in a --config "
+            "file, the network's and the chains' as network.KEY and chain.KEY (e.g. --set feature_noise=0.3 "
+            "--set network.hidden=64). Precedence, lowest first: the defaults, --config, the options that "
+            "set a field (--iterations, --negatives, --average, --raw-edges, --activation, --message, "
+            "--absolute), --set."
+        ),
     )
     p.add_argument("data", type=Path, help=".jsonl of scenes, or a folder of images")
     p.add_argument("--out", type=Path, required=True, help="checkpoint to write (safetensors)")
-    p.add_argument("--iterations", type=int, default=None, help="training iterations (default 600)")
-    p.add_argument("--negatives", type=int, default=None, help="counter-examples per scene (default 16)")
+    p.add_argument("--iterations", type=ITERATIONS, default=None, help="training iterations (default 600)")
+    p.add_argument(
+        "--negatives",
+        type=number(1, 100_000, integer=True),
+        default=None,
+        help="counter-examples per scene (default 16)",
+    )
     p.add_argument(
         "--activation",
         choices=["silu", "softplus", "leaky_relu"],
@@ -83,6 +89,15 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "no size noise and no re-anchored counter-examples (better on Table 2's ordered rows, worse on "
         "larger rooms)",
     )
+    _add_train_inputs(p)
+    _add_train_outputs(p)
+    add_common(p)
+    add_device(p)
+    p.set_defaults(func=run_train)
+
+
+def _add_train_inputs(p: argparse.ArgumentParser) -> None:
+    """``scenescore train``'s encoder, image scale and the settings given as a file or one by one."""
     p.add_argument(
         "--encoder",
         default=None,
@@ -97,10 +112,21 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="pixels per metre of the images (folder input; default: from the folder's dataset.json)",
     )
-    _add_train_outputs(p)
-    add_common(p)
-    add_device(p)
-    p.set_defaults(func=run_train)
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="a YAML mapping of training settings (TrainConfig's fields; network and chain as nested "
+        "mappings or dotted keys); unknown keys are refused",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=None,
+        metavar="KEY=VALUE",
+        help="set one training setting, the value read as YAML (repeatable; overrides --config and the "
+        "options above): feature_noise=0.3, walls=true, network.hidden=64, chain.steps=40",
+    )
 
 
 def _add_train_outputs(p: argparse.ArgumentParser) -> None:
@@ -149,8 +175,6 @@ def run_generate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None and args.images is None:
         raise UserError("give --out FILE.jsonl and/or --images DIR")
-    if args.n < 1:
-        raise UserError(f"--n must be at least 1, got {args.n}")
     scenes = get(args.scenario).generate(args.n, args.seed)
     if args.out is not None:
         write_jsonl(args.out, scenes)
@@ -164,19 +188,28 @@ def run_generate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
+    """The training settings ``scenescore train``'s own options set (those given), as dotted keys."""
+    out: dict[str, object] = dict(RAW_EDGES) if args.raw_edges else {}
+    given = {"iterations": args.iterations, "negatives": args.negatives, "average": args.average}
+    out.update({k: v for k, v in given.items() if v is not None})
+    network = {"network.activation": args.activation, "network.message": args.message}
+    out.update({k: v for k, v in network.items() if v})
+    if args.absolute:
+        out["network.absolute"] = True
+    return out
+
+
 def run_train(args: argparse.Namespace) -> int:
     from ..encoders import make_encoder
     from ..learn.workflow import NothingLearned, train_model
     from ..scene import check_output_path, read_jsonl
 
     # settings first: a bad value fails before any data is read or any training is done
-    given = {"iterations": args.iterations, "negatives": args.negatives, "average": args.average}
-    raw = RAW_EDGES if args.raw_edges else {}
-    network = {k: v for k, v in {"activation": args.activation, "message": args.message}.items() if v}
-    if args.absolute:
-        network["absolute"] = True
-    cfg = TrainConfig(
-        **{k: v for k, v in given.items() if v is not None}, **raw, network=NetworkConfig(**network)
+    cfg = build_config(
+        read_config(args.config) if args.config is not None else {},
+        _flag_settings(args),
+        parse_overrides(args.set or []),
     )
     device = device_of(args)
     if args.log_dir is not None:

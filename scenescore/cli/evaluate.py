@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from . import UserError, add_common
+from . import UserError, add_common, add_device, device_of
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,6 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON here")
     add_common(p)
+    add_device(p)
     p.set_defaults(func=run)
 
 
@@ -36,10 +38,11 @@ def run(args: argparse.Namespace) -> int:
     from ..models import load
     from ..scene import atomic_write_text, read_jsonl
 
+    device = device_of(args)
     for f in (args.data, args.train_data):
         if f is not None and not f.exists():
             raise UserError(f"{f}: no such file")
-    model = load(args.model)
+    model = load(args.model, device=device)
     scenes = read_jsonl(args.data)
     train = read_jsonl(args.train_data) if args.train_data else None
     objects = [n.strip() for n in args.objects.split(",")] if args.objects else None
@@ -50,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--objects: no object named {missing} in {args.data}")
     ev = evaluate(model, scenes, train, objects=objects, seed=args.seed, progress=not args.quiet)
     print(f"leave-one-object-out on {len(scenes)} scenes of {args.data} (seed {args.seed}):\n{ev.table()}")
+    for w in ev.warnings():
+        print(f"warning: {w}", file=sys.stderr)
     if args.out:
         atomic_write_text(args.out, json.dumps(ev.to_dict(), indent=1) + "\n")
         print(f"wrote {args.out}")

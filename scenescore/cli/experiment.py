@@ -7,18 +7,53 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from . import UserError, add_common, add_device, device_of
+from . import ITERATIONS, JOBS, SCENES, SEEDS, UserError, add_common, add_device, device_of
 
 if TYPE_CHECKING:
     from ..experiments.report import Row
 
 EXPERIMENTS = ["missing", "novel", "heatmap", "compose", "zoo", "tidy"]
 
+# the options that only some experiments read (every other option applies to all); their defaults are
+# None or False, so a value other than those was given on the command line
+OWN_OPTIONS: dict[str, tuple[str, ...]] = {
+    "--methods": ("missing", "novel", "compose"),
+    "--scenarios": ("zoo", "tidy"),
+    "--jobs": ("missing", "novel", "compose", "zoo", "tidy"),
+    "--energy-only": ("zoo",),
+    "--test-scenes": ("tidy",),
+    "--efforts": ("tidy",),
+    "--iterations": ("tidy",),
+    "--alm": ("compose",),
+    "--from-images": ("missing", "novel"),
+    "--encoders": ("novel",),
+}
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Refuse an option given for an experiment that does not read it (``all`` reads every one), naming
+    the option and the experiments it belongs to."""
+    if args.name == "all":
+        return
+    for option, owners in OWN_OPTIONS.items():
+        value = getattr(args, option[2:].replace("-", "_"))
+        if value not in (None, False) and args.name not in owners:
+            raise UserError(
+                f"{option} is an option of the {', '.join(owners)} experiment{'s' if len(owners) > 1 else ''} "
+                f"(or all), not of {args.name}"
+            )
+
 
 def _add_selection(p: argparse.ArgumentParser) -> None:
     """Which experiment, over how many seeds, which methods and scenarios, and where it writes."""
     p.add_argument("name", choices=EXPERIMENTS + ["all"], help="which experiment")
-    p.add_argument("--seeds", type=int, default=3, help="seeds to average over (default 3)")
+    p.add_argument(
+        "--seeds",
+        type=SEEDS,
+        default=3,
+        help="how many seeds to average over: seeds 0 .. N-1 (tidy: --seed .. --seed+N-1), each its own data "
+        "split and model (default 3)",
+    )
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/experiment-NAME)")
     p.add_argument(
         "--methods",
@@ -42,7 +77,7 @@ def _add_running(p: argparse.ArgumentParser) -> None:
     """How the runs are carried out: worker processes, placement by the energy alone, a short smoke test."""
     p.add_argument(
         "--jobs",
-        type=int,
+        type=JOBS,
         default=None,
         help="worker processes, one thread each (default: one per usable core, 1 with --device cuda; "
         "1 runs everything in this process): compose, missing and novel run their seeds in them, zoo its "
@@ -62,7 +97,7 @@ def _add_tidy(p: argparse.ArgumentParser) -> None:
     """The tidy experiment's test scenes, effort weights and training length."""
     p.add_argument(
         "--test-scenes",
-        type=int,
+        type=SCENES,
         default=None,
         help="tidy: test scenes per scenario, each displaced five ways (default 3; 1 with --quick)",
     )
@@ -73,7 +108,7 @@ def _add_tidy(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--iterations",
-        type=int,
+        type=ITERATIONS,
         default=None,
         help="tidy: training iterations per scenario (default the trainer's 600; 30 with --quick)",
     )
@@ -118,16 +153,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     _add_running(p)
     _add_tidy(p)
     _add_variants(p)
-    add_common(p)
+    add_common(
+        p, seed_help="torch's global random seed before each experiment; tidy: its first seed (default 0)"
+    )
     add_device(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.seeds < 1:
-        raise UserError(f"--seeds must be at least 1, got {args.seeds}")
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs must be at least 1, got {args.jobs}")
+    check_options(args)
     args.device = device_of(args)  # checked before any work; every runner passes it on
     if args.jobs is None:
         from ..workers import default_jobs
@@ -413,11 +447,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     if args.quick and not args.scenarios:
         names = ("dining",)
     iterations = args.iterations or (30 if args.quick else None)
-    if iterations is not None and iterations < 1:
-        raise UserError(f"--iterations must be at least 1, got {iterations}")
     test_scenes = args.test_scenes or (1 if args.quick else 3)
-    if test_scenes < 1:
-        raise UserError(f"--test-scenes must be at least 1, got {test_scenes}")
     cfg = TrainConfig(iterations=iterations) if iterations else TrainConfig()
     efforts = tidy.EFFORTS if args.efforts is None else _efforts(args.efforts)
     log = (lambda s: None) if args.quiet else print

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common
+from . import UserError, add_common, number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="also write the node-embedding step (encoder features and sizes -> nodes) here",
     )
-    p.add_argument("--opset", type=int, default=17, help="ONNX opset (default 17)")
+    p.add_argument("--opset", type=number(13, 30, integer=True), default=17, help="ONNX opset (default 17)")
     p.add_argument(
         "--check",
         type=Path,
@@ -40,7 +40,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import check_number
     from ..models import load
     from ..models.export import energy_inputs, export_embedding_onnx, export_onnx, require
     from ..scene import Scene, check_output_path
@@ -51,7 +50,6 @@ def run(args: argparse.Namespace) -> int:
         check_output_path(args.embed_onnx, "--embed-onnx")
         if args.embed_onnx.resolve() == args.onnx.resolve():
             raise UserError("--embed-onnx and --onnx name the same file")
-    check_number("export", "opset", args.opset, 13, 30, integer=True)
     require("onnx")
     scene = None
     if args.check is not None:

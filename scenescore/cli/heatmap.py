@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common, number
+from . import UserError, add_common, add_device, device_of, number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,6 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--theta", type=number(-1e3, 1e3), default=0.0, help="the object's heading on the grid (rad)"
     )
     add_common(p)
+    add_device(p)
     p.set_defaults(func=run)
 
 
@@ -35,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from ..plot import draw_heatmap
     from ..scene import Scene
 
+    device = device_of(args)
     if args.resolution <= 0:
         raise UserError(f"--resolution must be positive, got {args.resolution}")
     scene = Scene.from_json(args.scene)
@@ -43,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     others = [n for n in scene.unknown if n != args.object]
     if others:
         raise UserError(f"{args.scene}: {others} have no pose; only --object may be null")
-    model = load(args.model)
+    model = load(args.model, device=device)
     xs, ys, e = energy_grid(model, scene, args.object, args.resolution, theta=args.theta)
     mn = grid_minimum(xs, ys, e)
     pose = scene[args.object].pose  # the scene's own pose of the object, when it gives one

@@ -7,7 +7,8 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from . import add_common, add_device
+    from ..solvers.langevin import MAX_PARTICLES
+    from . import add_common, add_device, number
 
     p = sub.add_parser(
         "place",
@@ -22,7 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scene", type=Path, help="scene JSON with some poses null")
     p.add_argument("--out", type=Path, help="write the filled scene here")
     p.add_argument("--plot", type=Path, help="draw the scene, placed objects marked, to this PNG")
-    p.add_argument("--particles", type=int, default=None, help="Langevin particles (default 64)")
+    p.add_argument(
+        "--particles",
+        type=number(1, MAX_PARTICLES, integer=True),
+        default=None,
+        help="Langevin particles (default 64)",
+    )
     p.add_argument(
         "--energy-only",
         action="store_true",

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from . import UserError, add_common, add_device, device_of
+from . import SEEDS, UserError, add_common, add_device, device_of
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="comma-separated solvers (langevin, osqp, casadi, alm) or chains joined by '>'; quote it, '>' is a "
         "shell redirect (default: 'langevin,langevin>osqp,langevin>casadi')",
     )
-    c.add_argument("--seeds", type=int, default=5, help="number of seeds (default 5)")
+    c.add_argument(
+        "--seeds",
+        type=SEEDS,
+        default=5,
+        help="how many seeds: seeds --seed .. --seed+N-1, the same for every solver (default 5)",
+    )
     c.add_argument("--out", help="write the table here: FILE.md (markdown) and FILE.json (JSON) beside it")
     add_common(c)
     add_device(c)
@@ -115,8 +120,6 @@ def run_compare(args: argparse.Namespace) -> int:
 
     lp = _load(args.problem, args)
     solvers = _solver_list(args.solvers)
-    if args.seeds < 1:
-        raise UserError(f"--seeds: expected a number >= 1, got {args.seeds}")
     warn_unused_options(args.problem, lp.options, list(solvers))
     cmp = compare(
         lp.problem,

@@ -8,7 +8,7 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..tidying import EFFORT
-    from . import add_common
+    from . import add_common, add_device
 
     p = sub.add_parser(
         "tidy",
@@ -41,6 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--plot", type=Path, help="draw current and target poses with the plan's moves to this PNG"
     )
     add_common(p)
+    add_device(p)
     p.set_defaults(func=run)
 
 
@@ -65,9 +66,11 @@ def run(args: argparse.Namespace) -> int:
     from ..plot import plot_tidy
     from ..scene import Scene
     from ..tidying import tidy
+    from . import device_of
 
+    device = device_of(args)
     reach = _reach(args.reach)
-    model = load(args.model)
+    model = load(args.model, device=device)
     scene = Scene.from_json(args.scene)
     stay = [n.strip() for n in args.stay.split(",") if n.strip()] if args.stay else []
     r = tidy(model, scene, effort=args.effort, seed=args.seed, stay=stay, reach=reach)

@@ -156,6 +156,8 @@ def _validate(
     if log_dir is not None:
         log_validation(log_dir, ev.to_dict(), cfg.iterations - 1)
     say(f"\nleave-one-object-out on {len(held)} held-out scenes (seed {seed}):\n{ev.table()}")
+    for w in ev.warnings():
+        print(f"warning: {w}", file=sys.stderr)
     return ev.examples
 
 
