@@ -102,16 +102,18 @@ def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tm
 
     jobs = []
 
-    def heatmap(args, out):
+    def runner(args, out):
         jobs.append(args.jobs)
-        return "## heatmap", []
+        return "## experiment", []
 
     monkeypatch.setattr(workers, "default_jobs", lambda device=None: 2)
-    monkeypatch.setattr(experiment, "RUNNERS", {**experiment.RUNNERS, "heatmap": heatmap})
-    assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0
+    monkeypatch.setattr(experiment, "RUNNERS", {**experiment.RUNNERS, "missing": runner, "heatmap": runner})
+    assert main(["experiment", "missing", "--out", str(tmp_path / "m")]) == 0
     assert "experiment: 2 worker processes, one per usable core" in capsys.readouterr().out
-    assert main(["experiment", "heatmap", "--jobs", "1", "--out", str(tmp_path / "h")]) == 0
+    assert main(["experiment", "missing", "--jobs", "1", "--out", str(tmp_path / "m")]) == 0
     assert jobs == [2, 1] and "worker processes" not in capsys.readouterr().out
+    assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0  # runs no workers
+    assert jobs == [2, 1, 1] and "worker processes" not in capsys.readouterr().out
 
 
 def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(monkeypatch, tmp_path):
@@ -137,8 +139,8 @@ def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(mo
     assert not os.path.exists(folder)  # gone with the run
     assert (tmp_path / "all" / "report.md").exists()
     seen.clear()
-    assert main(["experiment", "heatmap", "--jobs", "1", "--out", str(tmp_path / "h")]) == 0
-    assert seen == [("heatmap", None)]  # one experiment alone keeps no models
+    assert main(["experiment", "missing", "--jobs", "1", "--out", str(tmp_path / "m")]) == 0
+    assert seen == [("missing", None)]  # one experiment alone keeps no models
 
 
 def _square(x: int, log) -> int:

@@ -163,10 +163,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     check_options(args)
     args.device = device_of(args)  # checked before any work; every runner passes it on
-    if args.jobs is None:
+    if args.jobs is None:  # experiments that run no workers (heatmap) take one process
         from ..workers import default_jobs
 
-        args.jobs = default_jobs(args.device)
+        uses_workers = args.name == "all" or args.name in OWN_OPTIONS["--jobs"]
+        args.jobs = default_jobs(args.device) if uses_workers else 1
         if args.jobs > 1:
             print(f"experiment: {args.jobs} worker processes, one per usable core (--jobs 1: one process)")
     args.model_cache = None  # the folder every runner passes to training as its model cache
