@@ -44,6 +44,7 @@ DEFAULT_BOUNDS: Bounds = ((-0.6, -0.6), (0.6, 0.6))
 # the ranges every number read is checked against: finite in the float32 the model computes in, and a
 # scale at which float32 still resolves a millimetre and a milliradian
 MAX_LENGTH = 1e4  # metres: sizes, positions, polygon vertices and bounds (|value|)
+POLYGON_REACH = 1.01  # a polygon vertex may lie this many size diagonals from its object's origin
 MIN_SIZE = 1e-5  # metres: the smallest footprint side (0.01 mm)
 MAX_ANGLE = 1e3  # radians: |theta| (headings are wrapped; larger values lose float32 precision)
 MAX_FEATURE = 1e6  # |value| of a precomputed feature
@@ -149,6 +150,25 @@ def _check_polygon(points: list[list[float]], what: str) -> None:
         raise SceneError(f"{what}: the outline has no area (collinear or repeated points), got {points}")
 
 
+def _check_polygon_reach(points: list[list[float]], size: Sequence[float], label: str) -> None:
+    """Every vertex of a polygon footprint within the diagonal of the object's ``size`` of its origin.
+
+    The outline is in the object's own frame (its pose is the origin) and ``size`` is the footprint's
+    length and width: an outline that fits a ``length x width`` box touching its origin has no vertex
+    farther than the box's diagonal. The outline need not be centred, so the rule is that distance (and
+    1% more) rather than the centred box; a vertex beyond it is an outline in other units or another frame.
+    """
+    reach = math.hypot(size[0], size[1])
+    for i, (x, y) in enumerate(points):
+        far = math.hypot(x, y)
+        if far > reach * POLYGON_REACH:
+            raise SceneError(
+                f"{label}: field 'shape.polygon[{i}]': vertex [{x:g}, {y:g}] lies {far:.3g} m from the "
+                f"object's origin, farther than its size ({size[0]:g} x {size[1]:g} m, diagonal "
+                f"{reach:.3g} m) allows; the outline is in the object's own frame, around its pose"
+            )
+
+
 def fits_bounds(obj: SceneObject, bounds: Bounds) -> bool:
     """Whether ``obj``'s footprint fits inside ``bounds`` at some heading (checked every half degree)."""
     (x0, y0), (x1, y1) = bounds
@@ -227,8 +247,9 @@ def _object_fixed(value: Any, label: str) -> bool:
     return value
 
 
-def _object_shape(shape: Any, label: str) -> str | dict:
-    """``"box"``, ``"disk"`` or ``{"polygon": [[x, y], ...]}`` (a simple polygon with an area)."""
+def _object_shape(shape: Any, label: str, size: Sequence[float]) -> str | dict:
+    """``"box"``, ``"disk"`` or ``{"polygon": [[x, y], ...]}`` (a simple polygon with an area, within the
+    reach of ``size``: :func:`_check_polygon_reach`)."""
     if isinstance(shape, str):
         if shape not in ("box", "disk"):
             raise SceneError(
@@ -245,6 +266,7 @@ def _object_shape(shape: Any, label: str) -> str | dict:
             _vector(p, 2, f"{label}: field 'shape.polygon[{i}]'", MAX_LENGTH, " m") for i, p in enumerate(pts)
         ]
         _check_polygon(polygon, f"{label}: field 'shape.polygon'")
+        _check_polygon_reach(polygon, size, label)
         return {"polygon": polygon}
     raise SceneError(f"{label}: field 'shape': expected 'box', 'disk' or {{'polygon': [...]}}, got {shape!r}")
 
@@ -347,7 +369,7 @@ class SceneObject:
         pose = _object_pose(d.get("pose"), label)
         color = _object_color(d.get("color", [128, 128, 128]), label)
         fixed = _object_fixed(d.get("fixed", False), label)
-        shape = _object_shape(d.get("shape", "box"), label)
+        shape = _object_shape(d.get("shape", "box"), label, size)
         feats = _object_features(d.get("features"), label)
         image = _object_image(d.get("image"), label)
         if pose is None and fixed:

@@ -4,12 +4,19 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
+from ..memory import check
+from ..scene import Scene, check_output_path, read_jsonl, write_jsonl
 from . import ITERATIONS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
 
 PPM = number(0, open_lo=True)  # pixels per metre
+GENERATE_SAMPLE = 16  # scenes generated first to estimate the memory of a large --n
+# memory per byte of a scene's JSON line: the Scene objects (about 3x), the text and its UTF-8 bytes
+# while the file is written (2x), rounded up (measured 4-6x over the bundled scenarios)
+GENERATE_BYTES_PER_TEXT_BYTE = 6
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -166,7 +173,6 @@ def _add_train_outputs(p: argparse.ArgumentParser) -> None:
 
 def run_generate(args: argparse.Namespace) -> int:
     from ..scenarios import available, describe, get
-    from ..scene import write_jsonl
 
     if args.list or not args.scenario:
         names = available()
@@ -175,7 +181,7 @@ def run_generate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None and args.images is None:
         raise UserError("give --out FILE.jsonl and/or --images DIR")
-    scenes = get(args.scenario).generate(args.n, args.seed)
+    scenes = _generate_within_budget(get(args.scenario), args.scenario, args.n, args.seed)
     if args.out is not None:
         write_jsonl(args.out, scenes)
         print(f"wrote {len(scenes)} {args.scenario} scenes to {args.out}")
@@ -186,6 +192,25 @@ def run_generate(args: argparse.Namespace) -> int:
         write_rendered_dataset(scenes, args.images, progress=not args.quiet, **kw)
         print(f"rendered {len(scenes)} images to {args.images}")
     return 0
+
+
+def _generate_within_budget(scenario: Any, name: str, n: int, seed: int) -> list[Scene]:
+    """``scenario.generate(n, seed)``, refused by the memory budget first when ``n`` scenes would not fit.
+
+    A scenario draws its scenes from one random stream over the whole call, so ``n`` scenes cannot be
+    made in batches with the same result: they are all held at once, and their JSONL text too while it
+    is written. The bytes per scene are estimated from the first :data:`GENERATE_SAMPLE` scenes (the
+    same call's, so for as many scenes or fewer they are the answer)."""
+    sample = scenario.generate(min(n, GENERATE_SAMPLE), seed)
+    if n <= GENERATE_SAMPLE:
+        return list(sample)
+    text = sum(len(s.to_json(indent=None)) + 1 for s in sample) / len(sample)
+    check(
+        n * text * GENERATE_BYTES_PER_TEXT_BYTE,
+        f"generate {name}: {n} scenes (~{text:.0f} bytes of JSON each)",
+        "--n",
+    )
+    return list(scenario.generate(n, seed))
 
 
 def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
@@ -203,7 +228,6 @@ def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
 def run_train(args: argparse.Namespace) -> int:
     from ..encoders import make_encoder
     from ..learn.workflow import NothingLearned, train_model
-    from ..scene import check_output_path, read_jsonl
 
     # settings first: a bad value fails before any data is read or any training is done
     cfg = build_config(

@@ -14,7 +14,9 @@ the crop; the ``clip`` extra and local weights).
 from __future__ import annotations
 
 import importlib
+import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -29,12 +31,14 @@ __all__ = [
     "make_encoder",
     "available_encoders",
     "encode_scene",
+    "warn_unused_images",
 ]
 
 
 @runtime_checkable
 class Encoder(Protocol):
-    """Object -> vector of length ``dim``, independent of the object's pose."""
+    """Object -> vector of length ``dim``, independent of the object's pose. An encoder that never reads
+    an object's ``image`` may say so with ``reads_images = False`` (then a named image is warned unused)."""
 
     name: str
     dim: int
@@ -76,9 +80,37 @@ def make_encoder(name: str, config: dict[str, Any] | None = None) -> Encoder:
     return factory(**(config or {}))
 
 
+_warned: set[tuple[str, str]] = set()  # (encoder, file) whose unused images were named in this process
+
+
+def warn_unused_images(scene: Scene, encoder: Encoder) -> None:
+    """Say on stderr that a scene's objects' ``image`` files are not read by ``encoder`` (one that declares
+    ``reads_images = False``, such as ``footprint``), naming the objects and the files and whether they
+    exist: a crop named in a scene otherwise changes nothing, without a word. Said for the first such
+    scene of each file (a dataset of image scenes gives one line, not one per scene) and encoder."""
+    named = [o for o in scene.objects if o.image is not None and o.features is None]
+    if not named:
+        return
+    listed = ", ".join(
+        f"object {o.name!r} ({o.image}{'' if Path(str(o.image)).is_file() else ': no such file'})"
+        for o in named
+    )
+    msg = (
+        f"warning: {scene.label()}: the {encoder.name} encoder reads no images; unused: the image of {listed}"
+    )
+    source = scene.label()
+    head, _, line = source.rpartition(":")
+    key = (encoder.name, head if head and line.isdigit() else source)  # file:line -> the file
+    if key not in _warned:
+        _warned.add(key)
+        print(msg, file=sys.stderr)
+
+
 def encode_scene(scene: Scene, encoder: Encoder, names: Sequence[str] | None = None) -> np.ndarray:
     """Vectors for every object, ``(N, dim)``; an object's own ``features`` win over the encoder."""
     objs = scene.objects if names is None else [scene[n] for n in names]
+    if not getattr(encoder, "reads_images", True):
+        warn_unused_images(scene, encoder)
     out = np.zeros((len(objs), encoder.dim), dtype=np.float32)
     for i, o in enumerate(objs):
         if o.features is not None:

@@ -25,6 +25,7 @@ class FootprintEncoder:
 
     name = "footprint"
     dim = 12
+    reads_images = False  # an object's ``image`` is not read (encode_scene warns that it is unused)
 
     def __init__(self, length_scale: float | None = None):
         if length_scale is not None and not (isinstance(length_scale, (int, float)) and length_scale > 0):

@@ -132,8 +132,9 @@ def load(
         f"{path}: the network it declares ({cfg.describe()}: {count:,} weights)",
         "the widths it was trained with (hidden, edge_hidden, layers)",
     )
-    with torch.device("meta"):  # the shapes the config declares, without allocating them
-        expected = {k: tuple(v.shape) for k, v in EnergyNet(cfg).state_dict().items()}
+    with torch.device("meta"):  # the shapes and kinds the config declares, without allocating them
+        reference = EnergyNet(cfg).state_dict()
+    expected = {k: tuple(v.shape) for k, v in reference.items()}
     stored = {k: tuple(v.shape) for k, v in ck.tensors.items()}
     if expected != stored:
         diff = sorted(set(expected) ^ set(stored)) or [k for k in expected if expected[k] != stored[k]]
@@ -141,6 +142,11 @@ def load(
             f"{path}: the weights do not match the stored energy_config (first difference: {diff[0]!r})"
         )
     for k, t in ck.tensors.items():
+        # an integer or boolean tensor would be cast into the float weights without a word (quantised
+        # or damaged weights read as if they were the trained ones)
+        if reference[k].is_floating_point() and not t.is_floating_point():
+            kind = str(t.dtype).removeprefix("torch.")
+            raise CheckpointError(f"{path}: weight {k!r} is {kind}, expected a floating-point tensor")
         if t.is_floating_point() and not bool(torch.isfinite(t).all()):
             raise CheckpointError(f"{path}: weight {k!r} holds NaN or infinite values; the file is damaged")
     if encoder is None:

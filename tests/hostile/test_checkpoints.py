@@ -214,6 +214,20 @@ def test_float64_weights_load_as_the_model_dtype(tmp_path, parts):
     assert load(p).dtype == torch.float32
 
 
+@pytest.mark.parametrize("dtype", [torch.int8, torch.int64, torch.bool, torch.uint8])
+def test_non_floating_weights_are_refused(tmp_path, parts, dtype):
+    """Quantised or damaged weights (integers, booleans) are named, not cast into the network silently."""
+    from scenescore.models.checkpoint import write_checkpoint
+
+    meta, tensors = parts
+    p = tmp_path / "int.ckpt"
+    config, encoder, info = (json.loads(meta[k]) for k in ("energy_config", "encoder", "info"))
+    write_checkpoint(p, {k: v.to(dtype) for k, v in tensors.items()}, config, encoder, info)
+    kind = str(dtype).removeprefix("torch.")
+    msg = expect(lambda: load(p), CheckpointError, str(p))
+    assert msg == f"{p}: weight {_first(tensors)!r} is {kind}, expected a floating-point tensor"
+
+
 @pytest.mark.parametrize("umask,mode", [(0o022, 0o644), (0o077, 0o600)])
 def test_saved_checkpoint_follows_the_umask(tmp_path, umask, mode):
     import os

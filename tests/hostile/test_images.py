@@ -229,3 +229,25 @@ def test_object_image_that_is_fine(tmp_path):
     s = _scene_with_image(tmp_path, _png(tmp_path / "ok.png", img))
     enc = make_encoder("image")
     assert np.isfinite(encode_scene(s, enc)).all()
+
+
+def test_object_image_unused_by_the_footprint_encoder_is_warned_once(tmp_path, capsys):
+    """A footprint encoder reads no images: a named crop (here missing) is said unused, once per file."""
+    s = _scene_with_image(tmp_path, tmp_path / "nope.png")
+    enc = make_encoder("footprint")
+    plain = encode_scene(Scene.from_json(write(tmp_path / "plain.json", with_object(0))), enc)
+    for _ in range(2):
+        assert np.array_equal(encode_scene(s, enc), plain)  # the image changes nothing
+    assert capsys.readouterr().err == (
+        f"warning: {tmp_path / 's.json'}: the footprint encoder reads no images; unused: the image of "
+        f"object 'plate' ({tmp_path / 'nope.png'}: no such file)\n"
+    )
+
+
+def test_place_with_a_footprint_model_warns_of_an_unused_image(tmp_path, capsys, model_path):
+    from .helpers import run_cli
+
+    p = write(tmp_path / "s.json", with_object(0, image="crops/plate.png"))
+    code, _, err = run_cli(capsys, "place", model_path, p, "--out", tmp_path / "o.json", "--quiet")
+    assert code == 0
+    assert "the footprint encoder reads no images" in err and "'plate' (crops/plate.png: no such file)" in err

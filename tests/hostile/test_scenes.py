@@ -150,6 +150,16 @@ OBJECTS = [
         with_object(0, shape={"polygon": [[0, 0], [0.1, 0], [0.05, 0.03], [0.1, 0.1], [0, 0.1]]}),
         None,
     ),
+    (
+        "polygon 10 m from its 0.2 m object",
+        with_object(0, shape={"polygon": [[0, 0], [10.0, 0], [10.0, 0.1]]}),
+        ("'plate'", "shape.polygon[1]", "[10, 0]", "lies 10 m", "0.2 x 0.2 m", "own frame"),
+    ),
+    (
+        "polygon uncentred within its size is fine",
+        with_object(0, shape={"polygon": [[0, 0], [0.2, 0], [0, 0.2]]}),
+        None,
+    ),
     ("features a string", with_object(0, features="red"), ("'plate'", "'features'")),
     ("features NaN", with_object(0, features=[0.1, math.inf]), ("'plate'", "'features'")),
     ("features 1e39 beyond float32", with_object(0, features=[1e39]), ("'plate'", "'features'")),
