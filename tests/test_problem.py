@@ -180,3 +180,14 @@ def test_inline_scene_and_cli_solve_writes_json_and_plot(folder, capsys):
         args = parser.parse_args(["compare", str(folder / "p.yaml"), "--solvers", bad, "--quiet"])
         with pytest.raises(UserError, match=said):
             args.func(args)
+
+
+def test_cli_solve_seed_defaults_to_the_files_and_any_integer_is_a_seed(folder, capsys):
+    """``solve`` without --seed takes the file's ``seed``; -1 is a seed like any other, not a sentinel."""
+    from scenescore.cli import main
+
+    (folder / "p.yaml").write_text(GOOD.replace("seed: 0", "seed: 7"))
+    assert main(["solve", str(folder / "p.yaml")]) == 0
+    assert "(seed 7)" in capsys.readouterr().out
+    assert main(["solve", str(folder / "p.yaml"), "--seed", "-1"]) == 0
+    assert "(seed -1)" in capsys.readouterr().out

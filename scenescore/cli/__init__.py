@@ -106,7 +106,7 @@ JOBS = number(1, 1024, integer=True)  # worker processes
 SCENES = number(1, 1_000_000, integer=True)  # scenes to generate or test on
 
 
-def add_common(p: argparse.ArgumentParser, seed: int = 0, seed_help: str | None = None) -> None:
+def add_common(p: argparse.ArgumentParser, seed: int | None = 0, seed_help: str | None = None) -> None:
     """Options every command has."""
     from ..threads import MAX_THREADS
 

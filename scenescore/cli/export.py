@@ -19,7 +19,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("model", type=Path, help="checkpoint from `scenescore train`")
-    p.add_argument("--onnx", type=Path, required=True, help="the energy graph to write (.onnx)")
+    p.add_argument(
+        "--out",
+        "--onnx",
+        dest="out",
+        type=Path,
+        required=True,
+        help="the energy graph to write (.onnx); --onnx is the same option",
+    )
     p.add_argument(
         "--embed-onnx",
         type=Path,
@@ -45,11 +52,11 @@ def run(args: argparse.Namespace) -> int:
     from ..scene import Scene, check_output_path
 
     # outputs, settings, the packages and the check's scene first: nothing is exported when any is wrong
-    check_output_path(args.onnx, "--onnx")
+    check_output_path(args.out, "--out")
     if args.embed_onnx is not None:
         check_output_path(args.embed_onnx, "--embed-onnx")
-        if args.embed_onnx.resolve() == args.onnx.resolve():
-            raise UserError("--embed-onnx and --onnx name the same file")
+        if args.embed_onnx.resolve() == args.out.resolve():
+            raise UserError("--embed-onnx and --out name the same file")
     require("onnx")
     scene = None
     if args.check is not None:
@@ -58,12 +65,12 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--check {args.check}: no such file")
         scene = Scene.from_json(args.check)
     model = load(args.model)
-    export_onnx(model, args.onnx, opset=args.opset)
+    export_onnx(model, args.out, opset=args.opset)
     if args.embed_onnx is not None:
         export_embedding_onnx(model, args.embed_onnx, opset=args.opset)
     inputs = ", ".join(energy_inputs(model))
     also = f", the node embedding to {args.embed_onnx}" if args.embed_onnx is not None else ""
-    print(f"wrote the energy ({inputs} -> energy) to {args.onnx}{also}")
+    print(f"wrote the energy ({inputs} -> energy) to {args.out}{also}")
     if scene is not None:
         diff, b = _check(model, scene, args)
         print(
@@ -98,7 +105,7 @@ def _check(model, scene, args: argparse.Namespace) -> tuple[float, int]:
         st = model.tensors([scene])
         feeds = {"feats": st.feats[0].float().numpy(), "sizes": st.sizes[0].float().numpy()}
         (inputs.nodes,) = ort.InferenceSession(str(args.embed_onnx), providers=cpu).run(None, feeds)
-    (got,) = ort.InferenceSession(str(args.onnx), providers=cpu).run(None, inputs.feeds(poses))
+    (got,) = ort.InferenceSession(str(args.out), providers=cpu).run(None, inputs.feeds(poses))
     with torch.no_grad():
         want = model.energy_fn(scene)(torch.as_tensor(poses, dtype=model.dtype)).double().numpy()
     return float(np.abs(got.astype(np.float64) - want).max()), len(poses)

@@ -22,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", help="write the result as JSON here")
     p.add_argument("--scene-out", help="write the solved scene as JSON here")
     p.add_argument("--plot", help="draw the solved scene to this PNG")
-    add_common(p, seed=-1, seed_help="random seed (default -1: the problem file's own seed)")
+    add_common(p, seed=None, seed_help="random seed (default: the problem file's own seed)")
     add_device(p)
     p.set_defaults(func=run_solve)
 
@@ -75,7 +75,7 @@ def run_solve(args: argparse.Namespace) -> int:
 
     lp = _load(args.problem, args)
     solver = args.solver or lp.solver
-    seed = lp.seed if args.seed < 0 else args.seed
+    seed = lp.seed if args.seed is None else args.seed
     warn_unused_options(args.problem, lp.options, [solver])
     if not args.quiet:
         print(f"solving {args.problem} with {solver} (seed {seed})")

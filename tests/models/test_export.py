@@ -134,7 +134,7 @@ def test_cli_bad_output_is_one_line(trained, tmp_path, capsys, monkeypatch):
     _, d = trained
     (tmp_path / "afile").write_text("x")
     cases = [
-        (["--onnx", str(tmp_path / "afile" / "e.onnx")], "is a file, not a folder"),
+        (["--out", str(tmp_path / "afile" / "e.onnx")], "is a file, not a folder"),  # --onnx: the same
         (["--onnx", str(tmp_path)], "is a folder; expected a file"),
         (["--onnx", str(tmp_path / "e.onnx"), "--check", str(tmp_path / "none.json")], "no such file"),
     ]
