@@ -46,9 +46,10 @@ def test_methods_help_lists_every_experiments_methods():
         assert m in text, m
 
 
-def test_solve_seed_minus_one_is_explained():
-    text = next(a.help for a in _subparsers()["solve"]._actions if "--seed" in a.option_strings)
-    assert "-1" in text and "problem file" in text
+def test_solve_seed_default_is_explained():
+    """The default is the problem file's own seed: no sentinel value that is also a seed."""
+    action = next(a for a in _subparsers()["solve"]._actions if "--seed" in a.option_strings)
+    assert action.default is None and "problem file's own seed" in action.help and "-1" not in action.help
 
 
 def test_generate_list_describes_each_scenario(capsys):
