@@ -7,9 +7,18 @@ as one line.
 
 from __future__ import annotations
 
+import difflib
 import math
+from collections.abc import Iterable
 
-__all__ = ["ConfigError", "check_number"]
+__all__ = ["ConfigError", "check_number", "nearest_name"]
+
+
+def nearest_name(name: str, valid: Iterable[str], cutoff: float = 0.6) -> str | None:
+    """The valid name closest to a misspelt ``name`` (difflib's ratio at least ``cutoff``; 0: always the
+    closest), for the "did you mean" of an error; None when none is close enough."""
+    near = difflib.get_close_matches(name, list(valid), n=1, cutoff=cutoff)
+    return near[0] if near else None
 
 
 class ConfigError(ValueError):

@@ -20,7 +20,6 @@ Each cost ``type`` is read by the spec its cost module registered (:func:`scenes
 
 from __future__ import annotations
 
-import difflib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +31,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from .costs import Cost, CostError, CostSpec, cost_types
 from .devices import resolve_device
+from .errors import nearest_name
 from .problem import Problem, ProblemError
 from .scene import Scene, SceneError
 from .solvers import available, option_names
@@ -105,8 +105,8 @@ class _Where:
 
 
 def _near(name: str, valid: list[str]) -> str:
-    near = difflib.get_close_matches(name, valid, n=1)
-    return f"; did you mean {near[0]!r}?" if near else ""
+    near = nearest_name(name, valid)
+    return f"; did you mean {near!r}?" if near else ""
 
 
 def _pydantic_error(

@@ -8,13 +8,12 @@ An unknown key is refused with the nearest valid one named; a value of the wrong
 
 from __future__ import annotations
 
-import difflib
 import os
 from collections.abc import Mapping
 from dataclasses import fields, replace
 from typing import Any
 
-from ..errors import ConfigError
+from ..errors import ConfigError, nearest_name
 from ..learn import NetworkConfig, TrainConfig
 from ..sampling import TRAINING, LangevinConfig
 from ..textfiles import check_yaml_depth, check_yaml_tree, read_text
@@ -47,8 +46,8 @@ def _checked(key: str, value: Any, source: str) -> Any:
         raise ConfigError(f"{source}: {key}: expected a mapping of its settings (or keys such as {key}.KEY)")
     if key not in types:
         names = list(types) + ([] if "." in key else list(NESTED))
-        near = difflib.get_close_matches(key, names, n=1, cutoff=0.0)
-        raise ConfigError(f"{source}: unknown setting {key!r}; the nearest valid one is {near[0]!r}")
+        near = nearest_name(key, names, cutoff=0.0)
+        raise ConfigError(f"{source}: unknown setting {key!r}; the nearest valid one is {near!r}")
     ann = types[key]
     if value is None:
         if "None" in ann:

@@ -21,15 +21,16 @@ __all__ = ["NetworkConfig", "TrainConfig", "RAW_EDGES", "Derived", "derive"]
 @dataclass
 class NetworkConfig:
     """The energy network's architecture (the :class:`~scenescore.models.network.EnergyConfig` fields
-    that neither the data nor the training settings below decide); the defaults are the paper's sizes."""
+    that neither the data nor the training settings below decide); the defaults are EnergyConfig's own,
+    read from it so that the two cannot drift apart (what each field means is documented there)."""
 
-    embed_dim: int = 32
-    hidden: int = 32
-    edge_hidden: int | None = None  # width inside the message MLP f (None: hidden)
-    layers: int = 3
-    message: Literal["mlp", "linear"] = "mlp"  # "linear": the paper's single linear layer
-    activation: Activation = "silu"  # the paper's is "leaky_relu"; smooth helps second-order solvers
-    absolute: bool = False  # the "Abs" ablation: absolute poses in the nodes, no edge features
+    embed_dim: int = EnergyConfig.embed_dim
+    hidden: int = EnergyConfig.hidden
+    edge_hidden: int | None = EnergyConfig.edge_hidden  # None: hidden
+    layers: int = EnergyConfig.layers
+    message: Literal["mlp", "linear"] = EnergyConfig.message
+    activation: Activation = EnergyConfig.activation
+    absolute: bool = EnergyConfig.absolute
 
     def __post_init__(self) -> None:
         EnergyConfig(feat_dim=1, **asdict(self))  # the network's own checks, before any data is read

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 import time
 from collections.abc import Callable
 from dataclasses import fields, is_dataclass
@@ -11,6 +10,7 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
+from ..errors import nearest_name
 from ..problem import Problem, ProblemError
 from .alm import ALMSolver
 from .base import Solver
@@ -66,16 +66,16 @@ def get(name: str, **options: Any) -> Solver:
     if len(stages) > 1:
         return Chain([get(s, **(options.get(s) or {})) for s in stages])
     if name not in _REGISTRY:
-        near = difflib.get_close_matches(name, available(), n=1)
-        hint = f" (did you mean {near[0]!r}?)" if near else ""
+        near = nearest_name(name, available())
+        hint = f" (did you mean {near!r}?)" if near else ""
         raise ProblemError(
             f"unknown solver {name!r}{hint}; available: {', '.join(available())}; chain them with '>'"
         )
     valid = option_names(name)
     unknown = [k for k in options if valid is not None and k not in valid]
     if unknown and valid is not None:
-        near = difflib.get_close_matches(str(unknown[0]), valid, n=1)
-        hint = f"; did you mean {near[0]!r}?" if near else ""
+        near = nearest_name(str(unknown[0]), valid)
+        hint = f"; did you mean {near!r}?" if near else ""
         raise ProblemError(
             f"solver {name!r}: unknown option {unknown[0]!r}{hint} (valid: {', '.join(valid)})"
         )
