@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from .scene import Scene, SceneError
 
@@ -25,6 +26,7 @@ __all__ = [
     "score_cases",
     "angle_error_deg",
     "case_errors",
+    "assignment",
     "OraclePlacer",
     "CategoryErrors",
     "EvalReport",
@@ -34,12 +36,28 @@ __all__ = [
 
 @dataclass
 class MissingCase:
-    """One test case: a scene with ``name``'s pose removed, and the true pose."""
+    """One test case: a scene with ``name``'s pose removed, and the true pose; ``others``: further
+    objects whose poses the same scene lacks, each ``(name, category, truth)`` (none in the one-object
+    protocol)."""
 
     scene: Scene
     name: str
     category: str
     truth: tuple[float, float, float]
+    others: tuple[tuple[str, str, tuple[float, float, float]], ...] = ()
+
+    @property
+    def names(self) -> list[str]:
+        """Every removed object's name, ``name`` first."""
+        return [self.name] + [n for n, _, _ in self.others]
+
+    def singles(self) -> list[MissingCase]:
+        """One one-object case per removed object, all on this case's scene (this case itself when it
+        removes one object)."""
+        if not self.others:
+            return [self]
+        first = MissingCase(self.scene, self.name, self.category, self.truth)
+        return [first] + [MissingCase(self.scene, n, c, t) for n, c, t in self.others]
 
 
 def make_cases(test: list[Scene], categories: tuple[str, ...]) -> list[MissingCase]:
@@ -115,6 +133,33 @@ def case_errors(case: MissingCase, pose: Sequence[float], symmetric: bool) -> tu
     """A placement's position error (cm) and orientation error (deg; ``None`` when ``symmetric``)."""
     t = 100 * math.hypot(pose[0] - case.truth[0], pose[1] - case.truth[1])
     return t, None if symmetric else angle_error_deg(pose[2], case.truth[2])
+
+
+def assignment(
+    poses: Sequence[Sequence[float]],
+    truths: Sequence[Sequence[float]],
+    categories: Sequence[str] | None = None,
+) -> list[int]:
+    """For each truth, the index of the pose matched to it: the one-to-one matching of interchangeable
+    objects that minimises the summed position error (``scipy.optimize.linear_sum_assignment``). With
+    ``categories`` (one per truth, and per pose in the same order) only objects of one category match."""
+    if len(poses) != len(truths):
+        raise SceneError(f"assignment: {len(poses)} poses for {len(truths)} truths")
+    if categories is not None and len(categories) != len(truths):
+        raise SceneError(f"assignment: {len(categories)} categories for {len(truths)} truths")
+    if not truths:
+        return []
+    p = np.asarray(poses, dtype=float)[:, :2]
+    t = np.asarray(truths, dtype=float)[:, :2]
+    cost = np.hypot(*(t[:, None, :] - p[None, :, :]).transpose(2, 0, 1))  # (truth, pose)
+    if categories is not None:
+        cats = np.asarray(categories)
+        cost = np.where(cats[:, None] == cats[None, :], cost, cost.max() * len(truths) + 1e6)
+    rows, cols = linear_sum_assignment(cost)
+    out = [0] * len(truths)
+    for r, c in zip(rows, cols):
+        out[int(r)] = int(c)
+    return out
 
 
 @dataclass

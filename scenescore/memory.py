@@ -119,11 +119,12 @@ def check(nbytes: float, what: str, lower: str) -> None:
         )
 
 
-def chunk_rows(row_bytes: float, what: str, lower: str) -> int:
-    """How many rows of ``row_bytes`` each to evaluate at once: about :data:`CHUNK_BYTES` (at most an
-    eighth of the budget) per chunk, at least one row, which must itself fit the budget (:func:`check`)."""
+def chunk_rows(row_bytes: float, what: str, lower: str, roomy: bool = False) -> int:
+    """How many rows of ``row_bytes`` each to evaluate at once: about :data:`CHUNK_BYTES` (``roomy``: as
+    much as an eighth of the budget; never more) per chunk, at least one row, which must itself fit the
+    budget (:func:`check`)."""
     check(row_bytes, what, lower)
-    target = min(CHUNK_BYTES, budget_bytes() // 8)
+    target = budget_bytes() // 8 if roomy else min(CHUNK_BYTES, budget_bytes() // 8)
     return max(1, int(target // max(row_bytes, 1.0)))
 
 

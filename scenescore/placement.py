@@ -4,7 +4,8 @@ Placement has no sampler of its own: :func:`place` builds the :class:`~scenescor
 learned energy with the unknown objects movable and solves it with the ``langevin`` solver under the
 placement defaults (:data:`PLACE`), on the threads :func:`~scenescore.threads.threads_for` chooses for its
 particles: one for the default 64, the run's budget (``--threads``, :func:`~scenescore.thread_budget`) for
-large batches.
+large batches. Several unknown objects start from :func:`in_turn`'s particles, found one object at a
+time, and then move together in the chain.
 """
 
 from __future__ import annotations
@@ -14,14 +15,17 @@ import os
 from dataclasses import dataclass, field, replace
 from typing import Protocol, cast
 
+import torch
+from torch import Tensor
 from tqdm.auto import tqdm
 
 from .costs import Cost, HingeCollision, LearnedEnergy
+from .devices import generator
 from .encoders import Encoder
 from .learn import TrainConfig, train
 from .models import ScoreModel
 from .problem import FEASIBILITY_TOL, Problem
-from .sampling import PLACEMENT
+from .sampling import PLACEMENT, screen
 from .scene import Scene, SceneError
 from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
@@ -32,6 +36,7 @@ __all__ = [
     "OVERLAP_WEIGHT",
     "place",
     "place_many",
+    "in_turn",
     "placement_problem",
     "covering",
     "CANDIDATE_DENSITY",
@@ -108,6 +113,47 @@ def placement_problem(model: ScoreModel, scene: Scene, energy_only: bool = False
     return Problem(scene, cost, movable=scene.unknown, name="place")
 
 
+def in_turn(
+    model: ScoreModel, scene: Scene, options: LangevinOptions, seed: int = 0, energy_only: bool = False
+) -> Tensor:
+    """Starting particles for placing several unknown objects, found one object at a time: the first
+    unknown object is screened alone (the later ones left out of the scene), its best ``particles``
+    draws kept; each next one is drawn beside every kept particle and screened with the ones before it
+    in place (a beam over the objects in the scene's order). ``(particles, N, 3)`` float64 for
+    :func:`placement_problem` of ``scene``. Screened jointly, a draw would have to put every object on
+    a free slot at once; in turn, each stage screens one object's slot, so the search grows with the
+    objects to place, not with the product of their slots."""
+    names = scene.unknown
+    keep, draws_per_stage = options.particles, max(options.candidates, options.particles)
+    gen = generator(seed, model.device)
+    beam: Tensor | None = None  # (particles, k, 3): the first k unknown objects' poses in each particle
+    for k in range(len(names)):
+        later = set(names[k + 1 :])
+        sub = replace(scene, objects=[o for o in scene.objects if o.name not in later])
+        problem = placement_problem(model, sub, energy_only)
+        draws = problem.initial(draws_per_stage, gen, proposals=options.proposals)
+        if beam is not None:
+            rows = torch.arange(len(draws), device=draws.device) % len(beam)
+            draws[:, [sub.index(m) for m in names[:k]]] = beam[rows]
+        best = screen(problem.cost, draws, keep)
+        beam = best[:, [sub.index(m) for m in names[: k + 1]]]
+    full = placement_problem(model, scene, energy_only)
+    start = full.base_poses()[None].repeat(keep, 1, 1)
+    assert beam is not None
+    start[:, [scene.index(m) for m in names]] = beam
+    return start
+
+
+def _starts(
+    model: ScoreModel, scene: Scene, options: LangevinOptions, seed: int, energy_only: bool
+) -> Tensor | None:
+    """:func:`in_turn`'s particles where ``scene`` has several unknown objects and ``options`` screen
+    candidates; None (the solver draws its own start) otherwise."""
+    if len(scene.unknown) > 1 and options.candidates > options.particles:
+        return in_turn(model, scene, options, seed, energy_only)
+    return None
+
+
 def place_many(
     model: ScoreModel,
     scenes: list[Scene],
@@ -126,8 +172,10 @@ def place_many(
     with torch_threads(1):  # tiny tensors; each batched chain chooses threads for its particles
         for idx in groups.values():
             problems = [placement_problem(model, scenes[i], energy_only) for i in idx]
-            solver = LangevinSolver(options or covering(PLACE, model, [scenes[i] for i in idx]))
-            results = solver.solve_many(problems, seed=seed)
+            opts = options or covering(PLACE, model, [scenes[i] for i in idx])
+            starts = [_starts(model, scenes[i], opts, seed + k, energy_only) for k, i in enumerate(idx)]
+            init = None if any(x is None for x in starts) else cast(list[Tensor], starts)
+            results = LangevinSolver(opts).solve_many(problems, seed=seed, init=init)
             for i, r in zip(idx, results):
                 out[i] = _filled(scenes[i], r)
     return out
@@ -155,7 +203,8 @@ def place(
 
     This is ``ss.solve(placement_problem(model, scene), LangevinSolver(opts), seed=seed)`` with ``opts =
     options or covering(PLACE, model, [scene])``: placing and solving give the same answer for the same
-    model, seed and options. By default the
+    model, seed and options (for several unknown objects, with ``init=in_turn(model, scene, opts,
+    seed)``: the chain starts from particles found one object at a time). By default the
     placed objects keep off the others (:func:`non_overlap`); ``energy_only`` places by the learned
     energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
     """
@@ -163,7 +212,8 @@ def place(
         return scene.copy()
     with torch_threads(1):  # tiny tensors; the chain chooses threads for its particles
         opts = options or covering(PLACE, model, [scene])
-        r = solve(placement_problem(model, scene, energy_only), LangevinSolver(opts), seed=seed)
+        init = _starts(model, scene, opts, seed, energy_only)
+        r = solve(placement_problem(model, scene, energy_only), LangevinSolver(opts), init, seed=seed)
         return _filled(scene, r)
 
 

@@ -17,6 +17,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.threads", 0),  # the run's torch thread budget, the count chosen per batch, scoped setting
     ("scenescore.devices", 0),  # the device a model, a problem and its random numbers live on
     ("scenescore.workers", 0),  # worker processes that exit with the run that started them
+    ("scenescore.provenance", 0),  # where a result came from: commit, date, versions, device, cores
     ("scenescore.scene", 0),
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),

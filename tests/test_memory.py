@@ -385,13 +385,13 @@ def test_energy_in_pieces_matches_one_pass(monkeypatch, model):
         e = fn(x)
     e1, g = pose_grad()
     pieces = []
-    real = network._PoseGradInPieces.apply
+    real = network.PoseGradInPieces.apply
 
     def counting(net, rows, *inputs):
         pieces.append(rows)
         return real(net, rows, *inputs)
 
-    monkeypatch.setattr(network._PoseGradInPieces, "apply", counting)
+    monkeypatch.setattr(network.PoseGradInPieces, "apply", counting)
     monkeypatch.setattr(network, "CACHE_EDGES", 4 * n * n)  # pieces of 4 pose sets
     terms = net_terms(model, n)  # pieces of another batch size may take other kernels: to rounding
     with torch.no_grad():

@@ -9,10 +9,20 @@ import pytest
 import torch
 
 import scenescore as ss
+from scenescore.devices import generator
 from scenescore.encoders import FootprintEncoder
 from scenescore.models import ScoreModel
 from scenescore.models.trust import overlapping_categories, reference
-from scenescore.placement import PLACE, non_overlap, overlapping, place, place_many, placement_problem
+from scenescore.placement import (
+    PLACE,
+    in_turn,
+    non_overlap,
+    overlapping,
+    place,
+    place_many,
+    placement_problem,
+)
+from scenescore.sampling import screen
 from scenescore.solvers.langevin import LangevinSolver
 
 pytestmark = pytest.mark.float_order
@@ -138,3 +148,26 @@ def test_covering_screens_more_candidates_where_the_objects_are_small_for_the_bo
     a = place(model, wide.without("fork_0"), None, seed=1)
     b = place(model, wide.without("fork_0"), covering(PLACE, model, [wide]), seed=1)
     assert a["fork_0"].pose == b["fork_0"].pose
+
+
+def test_several_unknown_objects_start_from_particles_found_one_at_a_time():
+    """The first unknown object is screened with the later ones left out; ``place`` is the chain from
+    those particles, the same as ``ss.solve`` with ``init=in_turn(...)``."""
+    model = _model()
+    scene = _scenes()[0].without("fork_0").without("knife_1")
+    start = in_turn(model, scene, SMALL, seed=2)
+    assert start.shape == (SMALL.particles, len(scene), 3) and start.dtype == torch.float64
+    known = [scene.index(o.name) for o in scene.objects if o.pose is not None]
+    assert np.array_equal(start[:, known].numpy(), np.repeat(scene.poses()[None, known], SMALL.particles, 0))
+    alone = placement_problem(
+        model, replace(scene, objects=[o for o in scene.objects if o.name != "knife_1"])
+    )
+    draws = alone.initial(SMALL.candidates, generator(2), proposals=SMALL.proposals)
+    first = screen(alone.cost, draws, SMALL.particles)[:, alone.scene.index("fork_0")]
+    # each particle's fork is one of the best forks screened alone (the knife's stage keeps the best pairs)
+    assert all((first == row).all(dim=1).any() for row in start[:, scene.index("fork_0")])
+    assert not torch.equal(in_turn(model, scene, SMALL, seed=3), start)
+    placed = place(model, scene, SMALL, seed=2)
+    r = ss.solve(placement_problem(model, scene), LangevinSolver(SMALL), start, seed=2)
+    for name in ("fork_0", "knife_1"):
+        assert np.array_equal(np.asarray(placed[name].pose), r.poses[scene.index(name)])

@@ -161,15 +161,22 @@ def test_inline_scene_and_cli_solve_writes_json_and_plot(folder, capsys):
             "--seeds",
             "2",
             "--out",
-            str(folder / "cmp.md"),
+            str(folder / "cmp"),
             "--quiet",
         ]
     )
     assert args.func(args) == 0
-    table = (folder / "cmp.md").read_text()
+    # --out is a folder holding exactly the table and its JSON
+    assert sorted(p.name for p in (folder / "cmp").iterdir()) == ["comparison.json", "table.md"]
+    table = (folder / "cmp" / "table.md").read_text()
     assert "| osqp | 100% | 100% |" in table
-    rows = json.loads((folder / "cmp.json").read_text())["rows"]
+    rows = json.loads((folder / "cmp" / "comparison.json").read_text())["rows"]
     assert [r["solver"] for r in rows] == ["osqp", "casadi"]
+    # a file name where the folder belongs is refused before anything runs
+    args = parser.parse_args(["compare", str(folder / "p.yaml"), "--out", str(folder / "c.md"), "--quiet"])
+    with pytest.raises(UserError, match="a folder"):
+        args.func(args)
+    assert not (folder / "c.md").exists()
     # unknown, empty or repeated names are refused before anything runs
     for bad, said in (
         ("osqp,nope", "unknown solver 'nope'"),

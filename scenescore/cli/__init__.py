@@ -23,11 +23,13 @@ COMMAND_MODULES = [
     "place",
     "tidy",
     "experiment",
+    "report",
     "problems",
     "heatmap",
     "export",
     "inspect_model",
     "info",
+    "completion",
 ]
 
 
@@ -146,7 +148,17 @@ def device_of(args: argparse.Namespace) -> torch.device:
     return resolve_device(args.device, "--device")
 
 
-FOLDER_OUTPUTS = {"demo", "experiment"}  # commands whose --out is a folder
+def provenance_of(args: argparse.Namespace, seconds: float) -> dict:
+    """Where a run's results came from (:func:`scenescore.provenance.collect_provenance`): the command
+    line as typed, every option as parsed (defaults included), ``seconds`` of wall time, the device."""
+    from ..provenance import collect_provenance
+
+    skip = {"func", "argv", "model_cache"}  # the handler, the raw line (recorded apart), a temporary folder
+    options = {k: v for k, v in vars(args).items() if k not in skip}
+    return collect_provenance(getattr(args, "argv", None), options, seconds, getattr(args, "device", None))
+
+
+FOLDER_OUTPUTS = {"demo", "experiment", "compare"}  # commands whose --out is a folder
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
@@ -163,6 +175,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line as typed, for provenance
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

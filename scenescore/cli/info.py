@@ -3,17 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import importlib.util
 import json
 import os
 import platform
 from typing import Any
 
+from ..provenance import PACKAGES, version_of
 from . import add_common
-
-# the distributions whose versions matter for results and for bug reports
-PACKAGES = ["torch", "numpy", "scipy", "casadi", "osqp", "cvxpy", "shapely", "safetensors", "pyyaml"]
 
 # each optional extra (pyproject.toml) and the modules it installs: the extra is there when all import
 EXTRAS: dict[str, tuple[str, ...]] = {
@@ -38,14 +35,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print the same as one JSON object")
     add_common(p)
     p.set_defaults(func=run)
-
-
-def version_of(dist: str) -> str | None:
-    """The installed version of the distribution ``dist`` (None: not installed)."""
-    try:
-        return importlib.metadata.version(dist)
-    except importlib.metadata.PackageNotFoundError:
-        return None
 
 
 def installed(modules: tuple[str, ...]) -> bool:

@@ -44,7 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=5,
         help="how many seeds: seeds --seed .. --seed+N-1, the same for every solver (default 5)",
     )
-    c.add_argument("--out", help="write the table here: FILE.md (markdown) and FILE.json (JSON) beside it")
+    c.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder: table.md (the table) and comparison.json (every row, as JSON) in it",
+    )
     add_common(c)
     add_device(c)
     c.set_defaults(func=run_compare)
@@ -118,6 +123,8 @@ def run_compare(args: argparse.Namespace) -> int:
     from ..scene import atomic_write_text
     from ..solvers.compare import compare
 
+    if args.out is not None and args.out.suffix in (".md", ".json"):
+        raise UserError(f"--out {args.out}: a folder to write table.md and comparison.json in, not a file")
     lp = _load(args.problem, args)
     solvers = _solver_list(args.solvers)
     warn_unused_options(args.problem, lp.options, list(solvers))
@@ -129,9 +136,10 @@ def run_compare(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     print(cmp.table())
-    if args.out:
-        out = Path(args.out)
-        md = out if out.suffix == ".md" else out.with_suffix(".md")
-        atomic_write_text(md, f"# {lp.problem.name}: {args.seeds} seeds\n\n" + cmp.table() + "\n")
-        atomic_write_text(md.with_suffix(".json"), json.dumps(cmp.to_dict(), indent=1) + "\n")
+    if args.out is not None:
+        atomic_write_text(
+            args.out / "table.md", f"# {lp.problem.name}: {args.seeds} seeds\n\n" + cmp.table() + "\n"
+        )
+        atomic_write_text(args.out / "comparison.json", json.dumps(cmp.to_dict(), indent=1) + "\n")
+        print(f"wrote {args.out}/table.md and {args.out}/comparison.json")
     return 0

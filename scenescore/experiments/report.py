@@ -6,13 +6,23 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ..scene import atomic_write_text
 
-__all__ = ["Row", "SeedResults", "format_table", "over_seeds", "write_results"]
+__all__ = [
+    "RESULTS_FORMAT",
+    "Row",
+    "SeedResults",
+    "experiment_entry",
+    "format_figure",
+    "format_table",
+    "over_seeds",
+    "write_document",
+    "write_results",
+]
 
 
 @dataclass
@@ -54,7 +64,8 @@ class SeedResults:
         return rows
 
 
-def _fmt(v: float | str | None, digits: int = 2) -> str:
+def format_figure(v: float | str | None, digits: int = 2) -> str:
+    """A table cell: ``-`` for a missing figure, integers as they are, floats to ``digits`` places."""
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return "-"
     if isinstance(v, str):
@@ -82,19 +93,51 @@ def format_table(
         cells = []
         for key, _ in columns:
             v = r.figures.get(key)
-            cell = _fmt(v, digits)
+            cell = format_figure(v, digits)
             if key in std and r.figures.get(std[key]) is not None and cell != "-":
-                cell += f" ± {_fmt(r.figures[std[key]], digits)}"
+                cell += f" ± {format_figure(r.figures[std[key]], digits)}"
             if key in r.paper:
-                cell += f" (paper {_fmt(r.paper[key], digits)})"
+                cell += f" (paper {format_figure(r.paper[key], digits)})"
             cells.append(cell)
         lines.append(f"| {r.method} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-def write_results(out_dir: str | Path, rows: list[Row], markdown: str) -> None:
-    """``table.md`` and ``results.json`` in ``out_dir``, each written atomically."""
+RESULTS_FORMAT = "scenescore-results/1"  # results.json's ``format``: bumped when its layout changes
+
+
+def experiment_entry(name: str, rows: list[Row], markdown: str, seconds: float) -> dict[str, Any]:
+    """One experiment in ``results.json``: its name, wall time, table as printed, and rows."""
+    return {
+        "name": name,
+        "seconds": round(float(seconds), 1),
+        "markdown": markdown,
+        "rows": [r.to_dict() for r in rows],
+    }
+
+
+def write_document(path: str | Path, entries: list[dict[str, Any]], provenance: dict[str, Any]) -> None:
+    """``results.json`` at ``path``, written atomically: ``format``, ``provenance`` (where the figures
+    came from: :func:`scenescore.provenance.collect_provenance`) and ``experiments`` (each an
+    :func:`experiment_entry`, in the order they ran)."""
+    doc = {"format": RESULTS_FORMAT, "provenance": provenance, "experiments": entries}
+    atomic_write_text(path, json.dumps(doc, indent=1) + "\n")
+
+
+def write_results(
+    out_dir: str | Path,
+    rows: list[Row],
+    markdown: str,
+    *,
+    name: str,
+    seconds: float,
+    provenance: dict[str, Any],
+) -> dict[str, Any]:
+    """``table.md`` and ``results.json`` (this one experiment, see :func:`write_document`) in
+    ``out_dir``, each written atomically; returns the experiment's entry."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "table.md", markdown + "\n")
-    atomic_write_text(out / "results.json", json.dumps([r.to_dict() for r in rows], indent=1) + "\n")
+    entry = experiment_entry(name, rows, markdown, seconds)
+    write_document(out / "results.json", [entry], provenance)
+    return entry

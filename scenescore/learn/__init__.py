@@ -13,8 +13,15 @@
   imported here: it sits above the evaluation and the tidy planner, which import this package).
 """
 
-from .config import RAW_EDGES, Derived, NetworkConfig, TrainConfig, derive
-from .data import VALIDATION_FRACTION, check_training_data, data_scale, split_validation, stands_against_walls
+from .config import LOCAL_FROM, RAW_EDGES, Derived, NetworkConfig, TrainConfig, derive
+from .data import (
+    VALIDATION_FRACTION,
+    check_training_data,
+    data_scale,
+    local_radius,
+    split_validation,
+    stands_against_walls,
+)
 from .logs import log_validation, require_tensorboard, summary_writer
 from .loop import train
 from .losses import heldout_loss, infonce_loss
@@ -33,6 +40,8 @@ __all__ = [
     "reanchored_negatives",
     "ChainBuffer",
     "data_scale",
+    "local_radius",
+    "LOCAL_FROM",
     "stands_against_walls",
     "check_training_data",
     "split_validation",

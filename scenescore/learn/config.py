@@ -6,16 +6,23 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from ..encoders import Encoder, FootprintEncoder
 from ..errors import ConfigError, check_number
-from ..models.network import Activation, EnergyConfig
+from ..models.network import WALLS, Activation, EnergyConfig
 from ..sampling import TRAINING, LangevinConfig
 from ..scene import Scene
-from .data import data_scale, stands_against_walls
+from .data import data_scale, local_radius, stands_against_walls
 
-__all__ = ["NetworkConfig", "TrainConfig", "RAW_EDGES", "Derived", "derive"]
+__all__ = ["NetworkConfig", "TrainConfig", "RAW_EDGES", "Derived", "derive", "LOCAL_FROM", "Graph"]
+
+Graph = Literal["auto", "dense", "local"]
+#: ``graph="auto"`` gives data whose largest scene has more objects than this (walls included) a local
+#: graph. A local graph of 8 neighbours is faster from about 16 objects (``python
+#: benchmarks/bench_rooms.py``), but the table-top scenarios of up to 25 objects keep the dense graph
+#: their figures were measured with
+LOCAL_FROM = 32
 
 
 @dataclass
@@ -100,6 +107,13 @@ class TrainConfig:
     # evaluate each batch in groups of similar object counts, each cropped to its own largest (the same
     # energies; fewer padded edges where 4 and 24 objects share a batch); False: one padded pass
     group_sizes: bool = True
+    # "local": each object reads its ``neighbours`` nearest objects (and the walls), edges fading out at a
+    # gap of ``radius`` length scales (None: derived from the data, see local_radius), so that a scene's
+    # cost grows with its objects rather than their square (rooms); "dense": every pair; "auto": local
+    # for data with scenes of more than LOCAL_FROM objects
+    graph: Graph = "auto"
+    neighbours: int = 6
+    radius: float | None = None
     # the trained model is the exponential moving average of the weights with this decay, taken over the
     # second half of training (0: the last iterate, whose noise the average smooths out); a short run's
     # decay is lowered to 1 - 3 / (its averaged iterations), so that the weights of the average's first
@@ -117,6 +131,9 @@ class TrainConfig:
             check_number(own, name, getattr(self, name), 1, 100_000, integer=True)
         check_number(own, "perturbed", self.perturbed, 0, 100_000, integer=True)
         check_number(own, "reanchored", self.reanchored, 0, 100_000, integer=True)
+        check_number(own, "neighbours", self.neighbours, 1, 1024, integer=True)
+        if self.graph not in get_args(Graph):
+            raise ConfigError(f"{own}: graph: expected 'auto', 'dense' or 'local', got {self.graph!r}")
         if self.edge_encoder is not None:
             check_number(own, "edge_encoder", self.edge_encoder, 1, 8192, integer=True)
         for name in ("restart", "full_fraction", "single_fraction", "reanchor_restart", "average"):
@@ -139,7 +156,7 @@ class TrainConfig:
             "size_noise",
         ):
             check_number(own, name, getattr(self, name), 0)
-        for name in ("length_scale", "edge_range", "wall_range"):
+        for name in ("length_scale", "edge_range", "wall_range", "radius"):
             if getattr(self, name) is not None:
                 check_number(own, name, getattr(self, name), 0, open_lo=True)
         if not isinstance(self.chain, LangevinConfig):
@@ -178,15 +195,22 @@ def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = 
     """Everything a run of ``cfg`` on ``scenes`` decides from the data or from other settings: the length
     scale (the data's unless set), the edge range (the data's largest offset with ``saturate_edges``),
     the walls (where the data stands against its bounds, unless set) and the wall settings that apply
-    only with them, the encoder reading sizes in the data's unit, the batch, the chains' schedule and
-    the averaging."""
-    length, far = data_scale(scenes)
+    only with them, the graph (local for rooms, its radius the data's), the encoder reading sizes in
+    the data's unit, the batch, the chains' schedule and the averaging.
+
+    A local graph's length scale is that of the objects to place (the data's movable ones): the
+    network tells offsets apart to a fraction of a length scale, and in a room the fixed furniture
+    (1.2 m desks) would set one that places 45 cm chairs only to about 10 cm."""
+    walls = cfg.walls if cfg.walls is not None else stands_against_walls(scenes)
+    largest = max(len(s) for s in scenes) + (WALLS if walls else 0)
+    local = cfg.graph == "local" or (cfg.graph == "auto" and largest > LOCAL_FROM)
+    length, far = data_scale(scenes, movable=local)
     length = cfg.length_scale or length
     reach = cfg.edge_range or (far if cfg.saturate_edges else None)
     encoder = encoder or FootprintEncoder()
     if isinstance(encoder, FootprintEncoder):
         encoder = encoder.scaled(length)  # sizes in the data's unit
-    walls = cfg.walls if cfg.walls is not None else stands_against_walls(scenes)
+    radius = (cfg.radius or local_radius(scenes, length, cfg.neighbours)) if local else None
     energy = EnergyConfig(
         feat_dim=encoder.dim,
         **asdict(cfg.network),
@@ -197,6 +221,8 @@ def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = 
         edge_encoder=cfg.edge_encoder,
         wall_range=cfg.wall_range if walls else None,
         wall_lines=cfg.wall_lines and bool(walls),
+        neighbours=cfg.neighbours if local else None,
+        radius=radius,
     )
     averaged_from = cfg.iterations // 2
     return Derived(

@@ -14,6 +14,7 @@ __all__ = [
     "VALIDATION_FRACTION",
     "check_training_data",
     "data_scale",
+    "local_radius",
     "split_validation",
     "stands_against_walls",
 ]
@@ -22,14 +23,18 @@ __all__ = [
 VALIDATION_FRACTION = 0.15
 
 
-def data_scale(scenes: Sequence[Scene]) -> tuple[float, float]:
+def data_scale(scenes: Sequence[Scene], movable: bool = False) -> tuple[float, float]:
     """The data's length scale and largest offset: ``(L, R)``.
 
-    ``L`` (metres) is the median over every object of half its footprint's longer side; ``R`` is the
-    largest distance between two objects' centres in any scene, in units of ``L``. Both scale with the
-    data, exactly for powers of two: scaling every length by ``k`` scales ``L`` by ``k`` and keeps ``R``.
+    ``L`` (metres) is the median over every object (``movable``: every object not fixed, where there
+    are any) of half its footprint's longer side; ``R`` is the largest distance between two objects'
+    centres in any scene, in units of ``L``. Both scale with the data, exactly for powers of two:
+    scaling every length by ``k`` scales ``L`` by ``k`` and keeps ``R``.
     """
-    halves = sorted(max(o.size) / 2 for s in scenes for o in s.objects)
+    objects = [o for s in scenes for o in s.objects]
+    if movable and any(not o.fixed for o in objects):
+        objects = [o for o in objects if not o.fixed]
+    halves = sorted(max(o.size) / 2 for o in objects)
     n = len(halves)
     length = halves[n // 2] if n % 2 else (halves[n // 2 - 1] + halves[n // 2]) / 2
     far = 0.0
@@ -38,6 +43,31 @@ def data_scale(scenes: Sequence[Scene]) -> tuple[float, float]:
         if len(p) > 1:
             far = max(far, float(np.sqrt(((p[:, None] - p[None]) ** 2).sum(-1)).max()))
     return float(length), max(far / length, 1.0)
+
+
+def local_radius(scenes: Sequence[Scene], length: float, neighbours: int) -> float:
+    """The gap (length scales ``length``) at which a local graph's edges fade out, so that objects read
+    about ``neighbours`` others: the lower quartile over the data's objects of the gap to their
+    ``neighbours``-th nearest (by the gap between the circles of half their longer sides), so that few
+    lists cut off an edge of weight, but at least the 95th percentile of the gap to the nearest (nearly
+    every object reads its nearest) and one length scale."""
+    kth: list[float] = []
+    first: list[float] = []
+    for s in scenes:
+        p = s.poses()[:, :2]
+        if len(p) < 2:
+            continue
+        reach = np.array([max(o.size) / 2 for o in s.objects])
+        gap = np.sqrt(((p[:, None] - p[None]) ** 2).sum(-1)) - reach[:, None] - reach[None]
+        gap = np.maximum(gap, 0.0) / length
+        np.fill_diagonal(gap, np.inf)
+        gap.sort(axis=1)
+        first += gap[:, 0].tolist()
+        if len(p) > neighbours:
+            kth += gap[:, neighbours - 1].tolist()
+    lower = float(np.quantile(kth, 0.25)) if kth else 0.0
+    near = float(np.quantile(first, 0.95)) if first else 0.0
+    return max(lower, near, 1.0)
 
 
 def stands_against_walls(scenes: Sequence[Scene], gap: float = 0.02, share: float = 0.9) -> bool:

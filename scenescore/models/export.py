@@ -252,6 +252,11 @@ def export_onnx(
     ``dynamo``: None takes the TorchScript exporter where this torch still has it (fast, with
     ``dynamic_axes``) and ``torch.export`` otherwise; True or False forces one."""
     require("onnx")
+    if model.config.local:
+        raise SceneError(
+            "export: this model reads a local graph (each object's nearest neighbours, for rooms), which "
+            "the ONNX graph does not carry yet; export a model trained with graph: dense"
+        )
     net = _float_net(model)
     inputs = energy_inputs(model)
     n = 3

@@ -1,32 +1,34 @@
-"""The SceneScore energy network: a dense, batched graph neural network over object poses.
+"""The SceneScore energy network: a batched graph neural network over object poses.
 
 Nodes carry semantic embeddings (encoder vector -> trained 2-layer MLP, scale descriptor appended).
 The edge feature ``e_ji`` is the pose of object ``i`` in the frame of object ``j``:
 ``R(-theta_j)(p_i - p_j), cos(theta_i - theta_j), sin(theta_i - theta_j)``, so the energy is invariant
-to any rigid motion of the whole scene. Each layer is ``v_i' = act(sum_j f(v_i, v_j, e_ji))``; global add
-pooling and an MLP head give one scalar per scene. Graphs are fully connected and dense: ``(B, N, N, H)``
-edge tensors with a padding mask.
+to any rigid motion of the whole scene. Each layer is ``v_i' = act(sum_j f(v_i, v_j, e_ji))``. The graph
+(:mod:`scenescore.models.graph`) is dense, ``(B, N, N, H)`` edge tensors with a padding mask, global add
+pooling and an MLP head giving one scalar per scene; or, for rooms, local: each object reads its
+nearest neighbours, ``(B, N, S, H)``, and the energy is a sum of per-object terms.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
-from torch.autograd.function import once_differentiable
 
 from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
 from ..memory import chunk_rows, return_freed_memory
+from .chunks import ChunkedPooled, PoseGradInPieces, pooled_in_chunks
+from .graph import WALLS, edge_features, neighbour_graph, senders, wall_nodes
 
 __all__ = [
     "WALLS",
     "EnergyConfig",
     "EnergyNet",
+    "MessageLayer",
     "edge_features",
     "make_activation",
     "parameter_count",
@@ -38,7 +40,6 @@ Activation = Literal["silu", "softplus", "leaky_relu"]
 
 MAX_WIDTH = 8192  # the widest layer a checkpoint may declare (the defaults are 32)
 MAX_LAYERS = 64
-WALLS = 4  # the bounds' sides that a model with walls appends after each scene's objects
 
 
 @dataclass
@@ -74,6 +75,13 @@ class EnergyConfig:
     # wall is dropped), and a wall seen from an object is the foot of the perpendicular from the object
     # to it, so no edge reads where along a wall something stands (False: checkpoints before it)
     wall_lines: bool = False
+    # a local graph for rooms: each object reads the ``neighbours`` objects nearest to it (by the gap
+    # between their footprints' circles, half the longer side each) and every wall, each message weighted
+    # by ``(1 - (gap / radius)^2)^2``, which fades to zero at a gap of ``radius`` length scales, so the
+    # energy stays smooth as objects come and go from each other's lists; and the energy is a sum of
+    # per-object terms (see EnergyNet.readout); None: every pair, one head over the pooled sum (dense)
+    neighbours: int | None = None
+    radius: float | None = None
 
     def __post_init__(self) -> None:
         own = "EnergyConfig"
@@ -89,6 +97,11 @@ class EnergyConfig:
             check_number(own, "edge_encoder", self.edge_encoder, 1, MAX_WIDTH, integer=True)
         if self.wall_range is not None:
             check_number(own, "wall_range", self.wall_range, 0, open_lo=True)
+        if (self.neighbours is None) != (self.radius is None):
+            raise ConfigError(f"{own}: neighbours and radius: give both (a local graph) or neither (dense)")
+        if self.neighbours is not None:
+            check_number(own, "neighbours", self.neighbours, 1, MAX_WIDTH, integer=True)
+            check_number(own, "radius", self.radius, 0, open_lo=True)
         if self.message not in ("mlp", "linear"):
             raise ConfigError(f"{own}: message: expected 'mlp' or 'linear', got {self.message!r}")
         if self.activation not in ("silu", "softplus", "leaky_relu"):
@@ -105,7 +118,13 @@ class EnergyConfig:
     def describe(self) -> str:
         """The widths that memory grows with, for messages."""
         inner = f", edge_hidden {self.edge_hidden}" if self.edge_hidden is not None else ""
-        return f"hidden {self.hidden}{inner}, {self.layers} layers, embed_dim {self.embed_dim}"
+        graph = f", {self.neighbours} neighbours" if self.neighbours is not None else ""
+        return f"hidden {self.hidden}{inner}, {self.layers} layers, embed_dim {self.embed_dim}{graph}"
+
+    @property
+    def local(self) -> bool:
+        """Whether the graph is local (:attr:`neighbours` within :attr:`radius`) rather than dense."""
+        return self.neighbours is not None
 
 
 def parameter_count(cfg: EnergyConfig) -> int:
@@ -150,66 +169,6 @@ def make_activation(name: str) -> nn.Module:
     raise ValueError(f"unknown activation {name!r}; expected 'silu', 'softplus' or 'leaky_relu'")
 
 
-def wall_nodes(mask: Tensor, count: int = WALLS) -> Tensor:
-    """``(B, N)`` bool: the last ``count`` real nodes of each row, where batching puts the walls."""
-    after = mask.flip(-1).cumsum(-1).flip(-1)  # real nodes at or after each index
-    return mask & (after <= count)
-
-
-def edge_features(
-    poses: Tensor,
-    length_scale: float,
-    edge_range: float | None = None,
-    round: Tensor | None = None,
-    walls: Tensor | None = None,
-    wall_range: float | None = None,
-    wall_lines: bool = False,
-) -> Tensor:
-    """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``; positions in length scales,
-    saturating beyond ``edge_range`` of them (the network never extrapolates to offsets far beyond the
-    data's: they all look alike, as far).
-
-    ``round (B, N)`` marks objects without a heading (round disks): seen from a round ``j`` the offset
-    is ``(|u|, 0)``, the distance alone, and an edge touching one has relative heading ``(0, 0)``; the
-    features then do not change when a round object turns.
-
-    ``walls (B, N)`` marks the walls. With ``wall_lines`` an object seen from a wall is at ``(0, h)``, its
-    height ``h`` above the wall's line (along the wall's own ``+y``), and a wall seen from an object is
-    at the foot of the perpendicular, ``R(theta_wall - theta_j) (0, -h)``. With ``wall_range``, on an
-    edge touching a wall each offset axis saturates on its own beyond that many length scales,
-    ``u / sqrt(1 + (u / R)^2)``."""
-    p = poses[..., :2]  # (B, N, 2)
-    th = poses[..., 2]  # (B, N)
-    d = p[:, :, None, :] - p[:, None, :, :]  # (B, N_i, N_j, 2): p_i - p_j
-    c, s = torch.cos(th)[:, None, :], torch.sin(th)[:, None, :]  # theta_j, broadcast over i
-    rx = c * d[..., 0] + s * d[..., 1]
-    ry = -s * d[..., 0] + c * d[..., 1]
-    dth = th[:, :, None] - th[:, None, :]
-    ux, uy = rx / length_scale, ry / length_scale
-    cd, sd = torch.cos(dth), torch.sin(dth)
-    if walls is not None and wall_lines:
-        wi, wj = walls[:, :, None], walls[:, None, :]  # (B, N_i, 1), (B, 1, N_j)
-        h = uy.transpose(1, 2)  # [b, i, j]: how far j stands from i's line, were i a wall
-        ux, uy = (
-            torch.where(wj, torch.zeros_like(ux), torch.where(wi, sd * h, ux)),
-            torch.where(wi & ~wj, -cd * h, uy),
-        )
-    if round is not None:
-        rj = round[:, None, :]  # (B, 1, N_j)
-        dist = torch.sqrt(ux * ux + uy * uy + 1e-12)  # the constant keeps the gradient finite at i == j
-        ux, uy = torch.where(rj, dist, ux), uy.masked_fill(rj, 0.0)
-        either = rj | round[:, :, None]
-        cd, sd = cd.masked_fill(either, 0.0), sd.masked_fill(either, 0.0)
-    if walls is not None and wall_range is not None:
-        touch = walls[:, :, None] | walls[:, None, :]  # (B, N_i, N_j)
-        ux = torch.where(touch, ux * torch.rsqrt(1 + (ux / wall_range) ** 2), ux)
-        uy = torch.where(touch, uy * torch.rsqrt(1 + (uy / wall_range) ** 2), uy)
-    if edge_range is not None:
-        f = torch.rsqrt(1 + (ux * ux + uy * uy) / edge_range**2)
-        ux, uy = ux * f, uy * f
-    return torch.stack([ux, uy, cd, sd], dim=-1)
-
-
 class MessageLayer(nn.Module):
     """``v_i' = act(sum_{j != i} f(v_i, v_j, e_ji))`` with the first linear of ``f`` split per part."""
 
@@ -222,11 +181,13 @@ class MessageLayer(nn.Module):
         self.out = nn.Linear(inner, hidden) if message == "mlp" else None
         self.act = act
 
-    def forward(self, v: Tensor, e: Tensor | None, pair_mask: Tensor) -> Tensor:
+    def forward(self, v: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None = None) -> Tensor:
+        """``pair_mask``: each edge's weight, ``(B, N, N)`` (dense) or ``(B, N, S)`` for the local graph
+        ``index (B, N, S)`` (see :func:`senders`)."""
         # f's last linear is moved out of the sum over j (it is linear): sum_j p_ij (W a_ij + b) =
         # W (sum_j p_ij a_ij) + b deg_i, so the (B, N, N, H) tensors are the first layer's and its
         # activation only
-        m = self.w_i(v)[:, :, None, :] + self.w_j(v)[:, None, :, :]  # (B, N, N, H)
+        m = self.w_i(v)[:, :, None, :] + senders(self.w_j(v), index)  # (B, N, N or S, H)
         if self.w_e is not None and e is not None:
             m = m + self.w_e(e)
         if self.out is not None:
@@ -282,15 +243,20 @@ class EnergyNet(nn.Module):
         per_edge = _EDGE_FLOATS + (cfg.layers * (_LAYER_FLOATS + inner) + 3 * inner if grad else 4 * inner)
         per_edge += 2 * (cfg.edge_encoder or 0)
         per_node = cfg.feat_dim + 2 * cfg.embed_dim + 8 * cfg.hidden * cfg.layers
-        return itemsize * (n * n * per_edge + n * per_node)
+        read = n if cfg.neighbours is None else min(n, cfg.neighbours + WALLS * cfg.walls)
+        return itemsize * (n * read * per_edge + n * per_node)
 
     def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
-        """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.memory.chunk_rows`)."""
+        """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.memory.chunk_rows`). With a
+        gradient a local graph's batch is cut only as the memory budget needs (its rows grow with ``n``,
+        not ``n^2``, and cutting a training batch into chunks runs its forward pass twice: 1.4 times the
+        time of a training step of 40 objects, ``python benchmarks/bench_rooms.py``)."""
         return chunk_rows(
             self.row_bytes(n, grad, itemsize),
             f"energy network: one pose set of {n} objects ({self.cfg.describe()}"
             f"{', with its gradient' if grad else ''})",
             "the number of objects in the scene",
+            roomy=grad and self.cfg.local,
         )
 
     def node_embedding(self, feats: Tensor, sizes: Tensor) -> Tensor:
@@ -319,25 +285,26 @@ class EnergyNet(nn.Module):
         On the CPU a batch of more than :data:`CACHE_EDGES` edges (or more rows than one chunk) is taken
         in pieces of at most that many when it needs no gradient, or (with ``weight_grads=False``) a
         gradient for the poses alone, each piece forward and backward at once, without the chunked
-        path's second forward pass (:class:`_PoseGradInPieces`); the head sees the whole batch. The same
+        path's second forward pass (:class:`~scenescore.models.chunks.PoseGradInPieces`); the head sees the whole batch. The same
         energies, the same gradients to float rounding, faster."""
         b, n, _ = poses.shape
         grad = torch.is_grad_enabled()
         rows = self.chunk_rows(n, grad, poses.element_size())
         args = (poses, feats, sizes, mask, nodes, round)
-        piece = min(rows, max(1, CACHE_EDGES // (n * n)))
+        read = n if self.cfg.neighbours is None else min(n, self.cfg.neighbours + WALLS * self.cfg.walls)
+        piece = min(rows, max(1, CACHE_EDGES // (n * read)))
         if poses.device.type == "cpu" and b > piece:
             if not grad:
-                return self.head(_pooled_in_chunks(self, piece, args)).squeeze(-1)
+                return self.readout(pooled_in_chunks(self, piece, args))
             if not weight_grads and poses.requires_grad:
-                return _PoseGradInPieces.apply(self, piece, *args)
+                return PoseGradInPieces.apply(self, piece, *args)
         if b <= rows:
             pooled = self._pooled(*args)
         else:
             return_freed_memory()
             weights = list(self.parameters()) if weight_grads else []
-            pooled = _ChunkedPooled.apply(self, rows, *args, *weights)
-        return self.head(pooled).squeeze(-1)
+            pooled = ChunkedPooled.apply(self, rows, *args, *weights)
+        return self.readout(pooled)
 
     def _pooled(
         self,
@@ -359,8 +326,18 @@ class EnergyNet(nn.Module):
             v = nodes
         v = v.expand(b, n, v.shape[-1])
         maskf = mask.to(poses.dtype).expand(b, n)
-        eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
-        pair = maskf[:, :, None] * maskf[:, None, :] * (1 - eye)  # (B, N, N), no self-edges, no padding
+        walls = wall_nodes(mask).expand(b, n) if self.cfg.walls else None
+        index = None
+        if self.cfg.local:
+            assert self.cfg.neighbours is not None and self.cfg.radius is not None
+            reach = 0.5 * v[..., -2:].amax(dim=-1)  # half the longer side (length scales): see node_embedding
+            pos = poses[..., :2] / self.cfg.length_scale
+            index, pair = neighbour_graph(
+                pos, reach, mask.expand(b, n), walls, self.cfg.neighbours, self.cfg.radius
+            )
+        else:
+            eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
+            pair = maskf[:, :, None] * maskf[:, None, :] * (1 - eye)  # (B, N, N), no self-edges, no padding
         # scenes without a round object take the plain path (the same numbers, less work)
         rnd = None
         if round is not None and self.cfg.round_invariant and bool(round.any()):
@@ -374,139 +351,34 @@ class EnergyNet(nn.Module):
             v = torch.cat([v, absf], dim=-1)
             e = None
         else:
-            e = self.edges(poses, rnd, wall_nodes(mask).expand(b, n) if self.reads_walls else None)
+            e = self.edges(poses, rnd, walls if self.reads_walls else None, index)
         for layer in self.layers:
-            v = layer(v, e, pair)
+            v = layer(v, e, pair, index)
+        if self.cfg.local:  # each object's own term up to the head's last linear, summed
+            v = self.head[1](self.head[0](v))
         return (v * maskf[..., None]).sum(dim=1)  # global add pooling
+
+    def readout(self, pooled: Tensor) -> Tensor:
+        """The energy per scene from :meth:`_pooled`'s sum: the head (dense), or the head's last linear
+        (local: the energy is a sum of per-object terms ``W2 act(W1 v_i + b1)``, plus one bias, so one
+        object's terms weigh as much among forty objects as among four, and far objects add their own
+        terms instead of changing how the head reads the sum)."""
+        return (self.head[2](pooled) if self.cfg.local else self.head(pooled)).squeeze(-1)
 
     @property
     def reads_walls(self) -> bool:
         """Whether edges touching a wall are read as such (:attr:`EnergyConfig.wall_range`, ``wall_lines``)."""
         return self.cfg.walls and (self.cfg.wall_range is not None or self.cfg.wall_lines)
 
-    def edges(self, poses: Tensor, round: Tensor | None, walls: Tensor | None = None) -> Tensor:
+    def edges(
+        self, poses: Tensor, round: Tensor | None, walls: Tensor | None = None, index: Tensor | None = None
+    ) -> Tensor:
         """What the message layers read of each edge: :func:`edge_features`, through the edge encoder
-        when the network has one; ``(B, N, N, 4 or edge_encoder)``. ``walls (B, N)``: which nodes are
-        walls (see :func:`wall_nodes`), for a network that :attr:`reads_walls`."""
+        when the network has one; ``(B, N, N or S, 4 or edge_encoder)``. ``walls (B, N)``: which nodes
+        are walls (see :func:`wall_nodes`), for a network that :attr:`reads_walls`; ``index``: a local
+        graph (:func:`neighbour_graph`)."""
         cfg = self.cfg
         e = edge_features(
-            poses, cfg.length_scale, cfg.edge_range, round, walls, cfg.wall_range, cfg.wall_lines
+            poses, cfg.length_scale, cfg.edge_range, round, walls, cfg.wall_range, cfg.wall_lines, index
         )
         return e if self.edge_enc is None else self.edge_enc(e)
-
-
-class _ChunkedPooled(torch.autograd.Function):
-    """:meth:`EnergyNet._pooled` over a batch in chunks of ``rows``: the forward pass keeps no graph; the
-    backward pass recomputes one chunk at a time with its graph and backpropagates through it."""
-
-    @staticmethod
-    def forward(ctx: Any, net: EnergyNet, rows: int, *inputs: Tensor | None) -> Tensor:
-        args = inputs[:6]
-        b = _first(args).shape[0]
-        ctx.net, ctx.rows, ctx.b = net, rows, b
-        ctx.save_for_backward(*args)
-        with torch.no_grad():
-            return _pooled_in_chunks(net, rows, args)
-
-    @staticmethod
-    @once_differentiable
-    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
-        net, rows, b = ctx.net, ctx.rows, ctx.b
-        args = ctx.saved_tensors
-        want = ctx.needs_input_grad[2:]
-        params = list(
-            net.parameters()
-        )[
-            : len(want) - 6
-        ]  # the weights given as inputs (or none)  # the inputs after net and rows: the six arguments, the weights
-        arg_grads: list[list[Tensor]] = [[] for _ in args]
-        param_grads: list[Tensor | None] = [None] * len(params)
-        for a in range(0, b, rows):
-            with torch.enable_grad():
-                part = _rows_of(args, b, a, a + rows)
-                part = [
-                    t.detach().requires_grad_(True) if t is not None and want[k] else t
-                    for k, t in enumerate(part)
-                ]
-                leaves = [t for k, t in enumerate(part) if t is not None and want[k]]
-                leaves += [p for k, p in enumerate(params) if want[6 + k]]
-                if not leaves:
-                    continue
-                out = _pooled_of(net, part)
-                got = list(torch.autograd.grad(out, leaves, grad[a : a + rows], allow_unused=True))
-            for k, t in enumerate(part):
-                if t is not None and want[k]:
-                    g = got.pop(0)
-                    arg_grads[k].append(torch.zeros_like(t) if g is None else g)
-            for k in range(len(params)):
-                if want[6 + k]:
-                    g, prev = got.pop(0), param_grads[k]
-                    if g is not None:
-                        param_grads[k] = g if prev is None else prev + g
-        out_args: list[Tensor | None] = []
-        for k, t in enumerate(args):
-            if t is None or not want[k]:
-                out_args.append(None)
-            elif t.shape[0] == b:
-                out_args.append(torch.cat(arg_grads[k]))
-            else:  # broadcast over the batch: its gradient is the sum over the chunks
-                out_args.append(torch.stack(arg_grads[k]).sum(0))
-        return (None, None, *out_args, *param_grads)
-
-
-class _PoseGradInPieces(torch.autograd.Function):
-    """The energy of a batch and its gradient with respect to the poses, ``rows`` pose sets at a time: each
-    piece runs forward and backward at once, while its tensors are in cache, and keeps only the gradient
-    ``(rows, N, 3)``; the backward pass scales it. The energies come from the head over the whole batch,
-    as in one pass. The other inputs and the weights get no gradient."""
-
-    @staticmethod
-    def forward(ctx: Any, net: EnergyNet, rows: int, *inputs: Tensor | None) -> Tensor:
-        b = _first(inputs).shape[0]
-        pooled, grads = [], []
-        for a in range(0, b, rows):
-            part = [None if t is None else t.detach() for t in _rows_of(inputs, b, a, a + rows)]
-            with torch.enable_grad():
-                poses = _first(part).requires_grad_(True)
-                p = _pooled_of(net, [poses, *part[1:]])
-                (g,) = torch.autograd.grad(net.head(p).sum(), poses)
-            pooled.append(p.detach())
-            grads.append(g)
-        ctx.save_for_backward(torch.cat(grads))
-        with torch.no_grad():
-            return net.head(torch.cat(pooled)).squeeze(-1)
-
-    @staticmethod
-    @once_differentiable
-    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
-        (g,) = ctx.saved_tensors
-        return (None, None, grad[:, None, None] * g, None, None, None, None, None)
-
-
-def _first(args: Sequence[Tensor | None]) -> Tensor:
-    poses = args[0]
-    assert poses is not None
-    return poses
-
-
-def _pooled_of(net: EnergyNet, args: Sequence[Tensor | None]) -> Tensor:
-    """``net._pooled`` of the six arguments of :meth:`EnergyNet.forward` (``poses`` first, never None)."""
-    return net._pooled(_first(args), *args[1:])
-
-
-def _pooled_in_chunks(net: EnergyNet, rows: int, args: Sequence[Tensor | None]) -> Tensor:
-    """:func:`_pooled_of` of a batch's six inputs, ``rows`` pose sets at a time, concatenated."""
-    b = _first(args).shape[0]
-    return torch.cat([_pooled_of(net, _rows_of(args, b, a, a + rows)) for a in range(0, b, rows)])
-
-
-def _rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:
-    """Rows ``a:z`` of each of a batch's inputs (see :func:`_rows`)."""
-    return [_rows(t, b, a, z) for t in args]
-
-
-def _rows(t: Tensor | None, b: int, a: int, z: int) -> Tensor | None:
-    """Rows ``a:z`` of a per-row input of a batch of ``b`` (inputs of one row broadcast: kept whole)."""
-    if t is None or t.shape[0] != b:
-        return t
-    return t[a:z]

@@ -16,7 +16,9 @@ from .zoo import (
     BanquetScenario,
     BedroomScenario,
     BookshelfScenario,
+    CafeScenario,
     CascadeScenario,
+    ClassroomScenario,
     GardenScenario,
     HallScenario,
     JarGridScenario,
@@ -46,6 +48,8 @@ __all__ = [
     "BookshelfScenario",
     "LoungeScenario",
     "HallScenario",
+    "ClassroomScenario",
+    "CafeScenario",
 ]
 
 

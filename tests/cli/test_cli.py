@@ -191,7 +191,7 @@ def test_experiment_missing_quick_writes_outputs(tmp_path):
         ]
     )
     assert rc == 0
-    rows = json.loads((out / "results.json").read_text())
+    rows = json.loads((out / "results.json").read_text())["experiments"][0]["rows"]
     assert [r["method"] for r in rows] == ["Nearest-Nbr", "Oracle"]
     assert {"fork_t_cm", "fork_R_deg", "bowl_t_cm", "mean_t_cm"} <= set(rows[0])
     assert "mean_t_cm_std" not in rows[0] and "±" not in (out / "table.md").read_text()  # one seed
@@ -243,7 +243,7 @@ def test_experiment_tidy_quick_writes_every_case(tmp_path):
     argv = ["experiment", "tidy", "--quick", "--scenarios", "desk", "--iterations", "2", "--efforts", "1,3"]
     assert main([*argv, "--seeds", "2", "--seed", "4", "--out", str(out), "--quiet"]) == 0
     cases = json.loads((out / "cases.json").read_text())
-    rows = json.loads((out / "results.json").read_text())
+    rows = json.loads((out / "results.json").read_text())["experiments"][0]["rows"]
     assert cases and rows[0]["cases"] == len(cases)
     # each seed its own split and displacements, the cases pooled
     assert {c["seed"] for c in cases} == {4, 5} and "seeds 4 to 5" in (out / "table.md").read_text()

@@ -49,7 +49,7 @@ def test_experiment_novel_cli_writes_results(tmp_path):
         ]
     )
     assert rc == 0
-    rows = json.loads((tmp_path / "results.json").read_text())
+    rows = json.loads((tmp_path / "results.json").read_text())["experiments"][0]["rows"]
     assert rows[0]["method"] == "Oracle" and rows[0]["mean_cm"] < 1.0
     assert "Table 2" in (tmp_path / "table.md").read_text()
 

@@ -12,7 +12,7 @@ the process noise. :data:`SCENARIOS` below is the one table of them by name, whi
 module here and one line in it.
 
 Together they span object sizes from 1 cm (a resistor) to 3 m (a banquet table), bounds from 0.3 m
-across (a circuit board) to 10 m (a banquet hall), 2 to 25 objects a scene, fixed furniture,
+across (a circuit board) to 16 m (a cafe), 2 to 80 objects a scene, fixed furniture,
 multi-modal relations (which side, which end, which hand), chains of dependence, rows and grids of a
 variable count, symmetric footprints and relations that depend on the objects' sizes:
 
@@ -27,7 +27,14 @@ variable count, symmetric footprints and relations that depend on the objects' s
 ``zoo-books``             4-24 books sorted by depth from a fixed bookend, backs flush to the wall
 ``zoo-lounge``            fixed 2 m sofa in a 4.4 m room; coffee table, side table at one end
 ``zoo-hall``              fixed 2 m console anywhere in a 4.4 m hall; vases at its ends, a stool
+``zoo-classroom``         14-22 fixed desks on a grid in a 12 x 10 m room, a chair behind each
+``zoo-cafe``              8-16 fixed tables in a 16 x 12 m room, turned by quarter turns, 4 chairs each
 ========================  ====================================================================
+
+The last two are rooms (:data:`ROOMS`: 28 to 80 objects): their ``missing_count`` is 3, the number of
+interchangeable chairs the zoo experiment removes from each test scene at once, and their
+``oracle_many(scene, names)`` returns the free slots (every scenario has it: by default each object's
+``oracle``); the experiment matches placements and the oracle's poses to the truths by assignment.
 
 Poses carry clipped Gaussian noise (about 1-3 % of the relation's length scale). Scenes are drawn
 again (from the same stream, so still reproducible) until every object lies inside the bounds and no
@@ -39,7 +46,9 @@ from __future__ import annotations
 from .banquet import BanquetScenario
 from .bedroom import BedroomScenario
 from .books import BookshelfScenario
+from .cafe import CafeScenario
 from .cascade import CascadeScenario
+from .classroom import ClassroomScenario
 from .common import ZooScenario
 from .garden import GardenScenario
 from .hall import HallScenario
@@ -50,6 +59,7 @@ from .workstation import WorkstationScenario
 
 __all__ = [
     "ZOO",
+    "ROOMS",
     "SCENARIOS",
     "ZooScenario",
     "PcbScenario",
@@ -62,6 +72,8 @@ __all__ = [
     "BookshelfScenario",
     "LoungeScenario",
     "HallScenario",
+    "ClassroomScenario",
+    "CafeScenario",
 ]
 
 # every zoo scenario by its name (each class's ``name``), in the order experiments and reports list them
@@ -78,6 +90,10 @@ SCENARIOS: dict[str, type[ZooScenario]] = {
         BookshelfScenario,
         LoungeScenario,
         HallScenario,
+        ClassroomScenario,
+        CafeScenario,
     )
 }
 ZOO: tuple[str, ...] = tuple(SCENARIOS)  # the zoo's scenario names
+# the room-scale scenarios: 28 to 80 objects, several chairs missing at once
+ROOMS: tuple[str, ...] = tuple(name for name, cls in SCENARIOS.items() if cls.missing_count > 1)

@@ -36,6 +36,7 @@ __all__ = [
     "anchor_of",
     "checked_target",
     "free_slot",
+    "free_slots",
 ]
 
 Pose = tuple[float, float, float]
@@ -204,6 +205,19 @@ def free_slot(slots: list[Pose], others: list[SceneObject]) -> Pose:
     return slots[int(np.argmax(gaps))]
 
 
+def free_slots(slots: list[Pose], others: list[SceneObject], k: int) -> list[Pose]:
+    """The ``k`` slots farthest from every other object (the ones the ``k`` masked objects left), each
+    slot once, farthest first; without others, the first ``k``."""
+    if k > len(slots):
+        raise SceneError(f"oracle: {k} objects to place but only {len(slots)} slots")
+    if not others:
+        return slots[:k]
+    pts = np.array([o.pose[:2] for o in others])  # type: ignore[index]
+    gaps = [float(np.min(np.hypot(*(pts - np.array(s[:2])).T))) for s in slots]
+    order = np.argsort(-np.array(gaps), kind="stable")
+    return [slots[int(i)] for i in order[:k]]
+
+
 # -- the base class -----------------------------------------------------------------------------------
 class ZooScenario:
     """Shared machinery: bounds from ``half``, seeded generation with redraws, the split.
@@ -218,6 +232,7 @@ class ZooScenario:
     n_train: int
     n_test: int
     margin: ClassVar[float] = 0.0  # objects keep this far inside the bounds
+    missing_count: ClassVar[int] = 1  # objects the zoo experiment removes from each test scene
 
     @property
     def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -244,6 +259,16 @@ class ZooScenario:
             if inside_bounds(objs, self.bounds, self.margin) and overlap_free(objs):
                 return Scene(objs, self.bounds, meta={"scenario": self.name, **meta})
         raise SceneError(f"{self.name}: no valid scene in {_TRIES} draws; are the bounds too small?")
+
+    def oracle(self, scene: Scene, name: str) -> Pose:
+        """The process's best guess for ``name`` from every other object's pose."""
+        raise NotImplementedError
+
+    def oracle_many(self, scene: Scene, names: Sequence[str]) -> list[Pose]:
+        """The oracle's poses for the objects ``names``, all masked in ``scene`` at once, in any order (a
+        caller matches them to the truths by assignment). Here each by :meth:`oracle`; scenarios whose
+        masked objects are interchangeable return the free slots instead."""
+        return [self.oracle(scene, n) for n in names]
 
     def _layout(self, rng: np.random.Generator) -> Layout | None:
         raise NotImplementedError
