@@ -91,17 +91,20 @@ def collect_provenance(
     options: Mapping[str, Any] | None = None,
     wall_seconds: float | None = None,
     device: Any = None,
+    commit: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Everything that says where a result came from, as a JSON-ready mapping: ``command`` (``argv`` as
-    one shell line), ``options`` (the parsed options, defaults included), ``commit`` and ``dirty``,
-    ``date`` (UTC, ISO 8601), ``versions``, ``device``, ``platform``, ``cores`` (usable) and ``threads``
-    (the run's torch thread budget), ``wall_seconds``. Never raises for a missing git or package."""
+    one shell line), ``options`` (the parsed options, defaults included), ``commit`` and ``dirty``
+    (``commit``: as :func:`git_commit` read them when the run started, since the checkout may change
+    while a long run goes on; default: now), ``date`` (UTC, ISO 8601), ``versions``, ``device``,
+    ``platform``, ``cores`` (usable) and ``threads`` (the run's torch thread budget), ``wall_seconds``.
+    Never raises for a missing git or package."""
     from .threads import budget, usable_cores
 
     return {
         "command": None if argv is None else "scenescore " + shlex.join(argv),
         "options": {k: _jsonable(v) for k, v in (options or {}).items()},
-        **git_commit(),
+        **(dict(commit) if commit is not None else git_commit()),
         "date": datetime.now(UTC).isoformat(timespec="seconds"),
         "versions": {
             "scenescore": version_of("scenescore"),  # the installed distribution's

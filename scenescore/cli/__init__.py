@@ -153,9 +153,16 @@ def provenance_of(args: argparse.Namespace, seconds: float) -> dict:
     line as typed, every option as parsed (defaults included), ``seconds`` of wall time, the device."""
     from ..provenance import collect_provenance
 
-    skip = {"func", "argv", "model_cache"}  # the handler, the raw line (recorded apart), a temporary folder
+    # the handler, the raw line and the commit at the start (recorded apart), a temporary folder
+    skip = {"func", "argv", "commit_at_start", "model_cache"}
     options = {k: v for k, v in vars(args).items() if k not in skip}
-    return collect_provenance(getattr(args, "argv", None), options, seconds, getattr(args, "device", None))
+    return collect_provenance(
+        getattr(args, "argv", None),
+        options,
+        seconds,
+        getattr(args, "device", None),
+        getattr(args, "commit_at_start", None),
+    )
 
 
 FOLDER_OUTPUTS = {"demo", "experiment", "compare"}  # commands whose --out is a folder
@@ -176,6 +183,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line as typed, for provenance
+    if args.command == "experiment":  # the code a long run started from, before the checkout can move
+        from ..provenance import git_commit
+
+        args.commit_at_start = git_commit()
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

@@ -158,6 +158,12 @@ def test_provenance_records_where_a_result_came_from():
     json.dumps(prov)  # JSON as it is
 
 
+def test_the_commit_is_the_one_the_run_started_from():
+    """A long run records the commit read when it started, not the one checked out when it ends."""
+    started = {"commit": "0" * 40, "dirty": False}
+    assert collect_provenance(commit=started)["commit"] == "0" * 40
+
+
 def test_no_git_is_an_unknown_commit_not_an_error(monkeypatch):
     monkeypatch.setenv("PATH", "")  # no git to run
     assert git_commit() == {"commit": "unknown", "dirty": None}
