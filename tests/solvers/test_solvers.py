@@ -193,3 +193,19 @@ def test_problem_validates_movable():
     with pytest.raises(ProblemError, match="'box' is fixed"):
         Problem(_scene(), PoseTarget("mug", (0, 0)), movable=["box"])
     assert Problem(_scene(), PoseTarget("mug", (0, 0))).movable == ["mug"]  # pose null: moves
+
+
+def test_casadi_solves_a_local_graph_model_through_torch():
+    """A local graph's neighbour lists have no symbolic form: IPOPT reads its energy through torch."""
+    torch.manual_seed(0)
+    model = ss.models.ScoreModel.create(
+        ss.FootprintEncoder(), hidden=8, layers=1, neighbours=3, radius=4.0
+    ).double()
+    scene = ss.scenarios.get("dining").generate(1, 0)[0]  # 8 objects: lists of 3 leave some out
+    name = scene.objects[0].name
+    p = ss.placement.placement_problem(model, scene.without(name), energy_only=True)
+    x0 = p.full(scene.poses())
+    r = solve(p, "casadi", init=x0)
+    with torch.no_grad():
+        before, after = float(p.evaluate(x0)[0]), float(p.evaluate(p.full(r.poses))[0])
+    assert r.success and np.isfinite(r.poses).all() and after < before - 1e-3
