@@ -243,8 +243,13 @@ class EnergyNet(nn.Module):
         per_edge = _EDGE_FLOATS + (cfg.layers * (_LAYER_FLOATS + inner) + 3 * inner if grad else 4 * inner)
         per_edge += 2 * (cfg.edge_encoder or 0)
         per_node = cfg.feat_dim + 2 * cfg.embed_dim + 8 * cfg.hidden * cfg.layers
-        read = n if cfg.neighbours is None else min(n, cfg.neighbours + WALLS * cfg.walls)
-        return itemsize * (n * read * per_edge + n * per_node)
+        return itemsize * (n * self.reads(n) * per_edge + n * per_node)
+
+    def reads(self, n: int) -> int:
+        """The nodes each node of an ``n``-node graph reads: all of them (dense; the self-edge is
+        masked, not skipped), or its neighbours and the walls (local)."""
+        cfg = self.cfg
+        return n if cfg.neighbours is None else min(n, cfg.neighbours + WALLS * cfg.walls)
 
     def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
         """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.memory.chunk_rows`). With a
@@ -291,8 +296,7 @@ class EnergyNet(nn.Module):
         grad = torch.is_grad_enabled()
         rows = self.chunk_rows(n, grad, poses.element_size())
         args = (poses, feats, sizes, mask, nodes, round)
-        read = n if self.cfg.neighbours is None else min(n, self.cfg.neighbours + WALLS * self.cfg.walls)
-        piece = min(rows, max(1, CACHE_EDGES // (n * read)))
+        piece = min(rows, max(1, CACHE_EDGES // (n * self.reads(n))))
         if poses.device.type == "cpu" and b > piece:
             if not grad:
                 return self.readout(pooled_in_chunks(self, piece, args))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -11,23 +10,19 @@ import numpy as np
 
 from ...scene import Scene
 from .common import (
+    FreeSlotScenario,
     Layout,
     Pose,
-    ZooScenario,
-    checked_target,
-    free_slot,
-    free_slots,
     in_frame,
     jitter,
     make_object,
-    placed_of,
 )
 
 __all__ = ["CafeScenario"]
 
 
 @dataclass
-class CafeScenario(ZooScenario):
+class CafeScenario(FreeSlotScenario):
     """A 16 x 12 m cafe: 8-16 fixed 1.0 x 0.8 m tables in cells of a 5 x 4 grid drawn at random, each
     jittered and turned by a multiple of 90 degrees (plus a few degrees), and four chairs at each table,
     one at the middle of each side, 0.15 m out from its edge, facing the table's centre. A room-scale
@@ -95,15 +90,3 @@ class CafeScenario(ZooScenario):
             if o.category == "table" and o.pose is not None
             for seat in self._seats(o.pose)
         ]
-
-    def oracle(self, scene: Scene, name: str) -> Pose:
-        """The seat at a table that no present chair occupies."""
-        checked_target(scene, name, self.missing, self.name)
-        return free_slot(self._slots(scene), placed_of(scene, "chair", but=name))
-
-    def oracle_many(self, scene: Scene, names: Sequence[str]) -> list[Pose]:
-        """The seats that no present chair occupies, one each."""
-        for n in names:
-            checked_target(scene, n, self.missing, self.name)
-        present = [o for o in placed_of(scene, "chair") if o.name not in names]
-        return free_slots(self._slots(scene), present, len(names))

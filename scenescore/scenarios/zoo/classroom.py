@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -11,24 +10,20 @@ import numpy as np
 
 from ...scene import Scene
 from .common import (
+    FreeSlotScenario,
     Layout,
     Pose,
-    ZooScenario,
-    checked_target,
     clipped_noise,
-    free_slot,
-    free_slots,
     in_frame,
     jitter,
     make_object,
-    placed_of,
 )
 
 __all__ = ["ClassroomScenario"]
 
 
 @dataclass
-class ClassroomScenario(ZooScenario):
+class ClassroomScenario(FreeSlotScenario):
     """A 12 x 10 m classroom: 14-22 fixed desks on a jittered grid, all facing +y, and behind each a
     chair facing the same way, its centre 0.40 m behind the desk's back edge. The grid has 4-6 columns,
     full rows from the front and the rest in a back row at columns drawn at random. A room-scale scene
@@ -99,15 +94,3 @@ class ClassroomScenario(ZooScenario):
 
     def _slots(self, scene: Scene) -> list[Pose]:
         return [self._slot(o.pose) for o in scene.objects if o.category == "desk" and o.pose is not None]
-
-    def oracle(self, scene: Scene, name: str) -> Pose:
-        """The slot behind the desk whose chair is missing."""
-        checked_target(scene, name, self.missing, self.name)
-        return free_slot(self._slots(scene), placed_of(scene, "chair", but=name))
-
-    def oracle_many(self, scene: Scene, names: Sequence[str]) -> list[Pose]:
-        """The slots behind the desks whose chairs are missing, one each."""
-        for n in names:
-            checked_target(scene, n, self.missing, self.name)
-        present = [o for o in placed_of(scene, "chair") if o.name not in names]
-        return free_slots(self._slots(scene), present, len(names))

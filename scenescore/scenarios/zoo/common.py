@@ -37,6 +37,7 @@ __all__ = [
     "checked_target",
     "free_slot",
     "free_slots",
+    "FreeSlotScenario",
 ]
 
 Pose = tuple[float, float, float]
@@ -272,3 +273,26 @@ class ZooScenario:
 
     def _layout(self, rng: np.random.Generator) -> Layout | None:
         raise NotImplementedError
+
+
+class FreeSlotScenario(ZooScenario):
+    """A scenario whose missing objects are interchangeable and each fill a slot (a chair at a desk):
+    the oracle returns the slots no present object of the missing category occupies. A subclass gives
+    :meth:`_slots`, every slot of the scene, and one ``missing`` category."""
+
+    missing: tuple[str, ...]
+
+    def _slots(self, scene: Scene) -> list[Pose]:
+        raise NotImplementedError
+
+    def oracle(self, scene: Scene, name: str) -> Pose:
+        """The slot that no present object of the missing category occupies."""
+        checked_target(scene, name, self.missing, self.name)
+        return free_slot(self._slots(scene), placed_of(scene, self.missing[0], but=name))
+
+    def oracle_many(self, scene: Scene, names: Sequence[str]) -> list[Pose]:
+        """The slots that no present object of the missing category occupies, one each."""
+        for n in names:
+            checked_target(scene, n, self.missing, self.name)
+        present = [o for o in placed_of(scene, self.missing[0]) if o.name not in names]
+        return free_slots(self._slots(scene), present, len(names))
