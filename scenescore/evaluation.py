@@ -4,6 +4,8 @@ scenes and ``scenescore evaluate`` on any labelled set.
 
 Position error ``t`` in cm, orientation error ``R`` in degrees (none for rotationally symmetric
 categories: in the experiments the scenario names them, in :func:`evaluate` they are the round disks).
+The ``*_cm`` figures are 100 times the data's lengths (cm for the built-in scenarios' metres);
+:meth:`EvalReport.table` prints them in the unit the data names (:mod:`scenescore.units`).
 """
 
 from __future__ import annotations
@@ -17,7 +19,10 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from .models.info import Caveats
+from .models.trust import CAVEAT
 from .scene import Scene, SceneError
+from .units import ShownUnit, declared_unit
 
 __all__ = [
     "MissingCase",
@@ -189,27 +194,38 @@ class EvalReport:
     seed: int
     baseline: str | None = None  # the baseline's name, when it ran
     flagged: int = 0  # placements flagged as out of distribution
+    unit: str | None = None  # the length unit the scenes name (``meta.unit``), None when they name none
     examples: list[tuple[MissingCase, Scene]] = field(default_factory=list, repr=False)  # a few, for plots
 
     def table(self) -> str:
-        """The report as aligned text."""
+        """The report as aligned text, lengths in the unit the data names (:class:`~scenescore.units.ShownUnit`)."""
+        shown = ShownUnit(self.unit)
+        places = shown.decimals(self.mean_t_cm)
 
         def f(v: float | None) -> str:
             return "-" if v is None or not math.isfinite(v) else f"{v:.2f}"
 
-        head = f"{'category':16s} {'n':>4s} {'t (cm)':>8s} {'R (deg)':>8s}"
+        def t(v: float | None) -> str:
+            return "-" if v is None or not math.isfinite(v) else f"{shown.value(v):.{places}f}"
+
+        t_head = f"t ({shown.label})"
+        w = max(8, len(t_head))
+        head = f"{'category':16s} {'n':>4s} {t_head:>{w}s} {'R (deg)':>8s}"
         if self.baseline:
-            head += f"   {'NN t':>8s} {'NN R':>8s}"
+            head += f"   {'NN t':>{w}s} {'NN R':>8s}"
         lines = [head]
         for c in self.categories:
-            line = f"{c.category:16s} {c.placements:4d} {f(c.t_cm):>8s} {f(c.R_deg):>8s}"
+            line = f"{c.category:16s} {c.placements:4d} {t(c.t_cm):>{w}s} {f(c.R_deg):>8s}"
             if self.baseline:
-                line += f"   {f(c.baseline_t_cm):>8s} {f(c.baseline_R_deg):>8s}"
+                line += f"   {t(c.baseline_t_cm):>{w}s} {f(c.baseline_R_deg):>8s}"
                 if c.baseline_missed:
                     line += f"  ({c.baseline_missed} not filled)"
             lines.append(line)
-        mean = f"{'mean':16s} {self.placements:4d} {f(self.mean_t_cm):>8s} {f(self.mean_R_deg):>8s}"
+        mean = f"{'mean':16s} {self.placements:4d} {t(self.mean_t_cm):>{w}s} {f(self.mean_R_deg):>8s}"
         lines.append(mean)
+        note = shown.note()
+        if note is not None:
+            lines.append(note)
         lines.append(
             f"held-out InfoNCE loss {self.heldout_loss:.3f} (chance {self.chance_loss:.3f}); "
             f"{self.scenes} scenes, {self.placements} placements, {self.flagged} flagged out of distribution"
@@ -217,28 +233,50 @@ class EvalReport:
         )
         return "\n".join(lines)
 
+    def _above_chance(self) -> bool:
+        """Whether the held-out loss is not below chance."""
+        return not self.heldout_loss < self.chance_loss
+
+    def _no_better(self) -> dict[str, str]:
+        """Each category placed no better than the nearest-neighbour baseline, with the figures."""
+        shown = ShownUnit(self.unit)
+        places = shown.decimals(self.mean_t_cm)
+        out = {}
+        for c in self.categories:
+            b = c.baseline_t_cm
+            if b is not None and math.isfinite(b) and not c.t_cm < b:
+                mine, theirs = shown.value(c.t_cm), shown.value(b)
+                out[c.category] = (
+                    f"{c.category}: held-out error {mine:.{places}f} {shown.words}, no better than nearest "
+                    f"neighbour's {theirs:.{places}f} {shown.words}"
+                )
+        return out
+
     def warnings(self) -> list[str]:
         """What the figures say the model has not learned: a held-out loss not below chance (the model
         tells held-out arrangements from counter-examples no better than a constant energy), and each
         category placed no better than the nearest-neighbour baseline."""
         out = []
-        if not self.heldout_loss < self.chance_loss:
+        if self._above_chance():
             out.append(
                 f"the held-out InfoNCE loss ({self.heldout_loss:.3f}) is not below chance "
                 f"({self.chance_loss:.3f}): the model does not tell held-out arrangements from "
-                "counter-examples; train on more scenes, or check that the held-out scenes follow the same rules"
+                "counter-examples; train on more scenes or for more iterations, or check that the held-out "
+                "scenes follow the same rules"
             )
-        for c in self.categories:
-            if (
-                c.baseline_t_cm is not None
-                and math.isfinite(c.baseline_t_cm)
-                and not c.t_cm < c.baseline_t_cm
-            ):
-                out.append(
-                    f"{c.category}: held-out error {c.t_cm:.2f} cm, no better than nearest neighbour's "
-                    f"{c.baseline_t_cm:.2f} cm"
-                )
-        return out
+        return out + list(self._no_better().values())
+
+    def caveats(self) -> Caveats | None:
+        """What placements from the model say in their flags (:meth:`warnings`, in short), None when the
+        figures find nothing unlearned."""
+        model = []
+        if self._above_chance():
+            model.append(
+                f"the model's held-out InfoNCE loss ({self.heldout_loss:.3f}) was not below chance "
+                f"({self.chance_loss:.3f}): it may not have learned the data's arrangements"
+            )
+        cats = self._no_better()
+        return Caveats(model, cats) if model or cats else None
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -258,11 +296,14 @@ def evaluate(
     """Place every movable object of ``scenes`` back in turn (or only ``objects``) and tabulate the errors
     per category, beside the nearest-neighbour baseline fitted on ``train_scenes`` when given, with the
     held-out InfoNCE loss. Deterministic in ``seed``: ``scenescore train`` and ``scenescore evaluate``
-    print the same figures for the same scenes."""
+    print the same figures for the same scenes. Lengths are printed in the unit the scenes name
+    (:func:`~scenescore.units.declared_unit`); flags of the model's own caveats (``info.caveats``) do not
+    count as out of distribution."""
     from .baselines import NearestNeighbour
     from .learn import heldout_loss
     from .placement import SceneScorePlacer
 
+    unit = declared_unit([*scenes, *(train_scenes or [])])
     cases = leave_one_out(scenes, objects)
     if not cases:
         raise SceneError("evaluate: no object to place (every object is fixed, unknown or not named)")
@@ -297,7 +338,7 @@ def evaluate(
             row.baseline_missed = len(theirs) - len(filled)
         rows.append(row)
     loss, chance = heldout_loss(model, scenes, seed=seed)
-    flagged = sum(bool(p.meta.get("placement", {}).get(c.name, {}).get("flags")) for c, p in zip(cases, pred))
+    flagged = sum(_out_of_distribution(p, c.name) for c, p in zip(cases, pred))
     return EvalReport(
         categories=rows,
         scenes=len(scenes),
@@ -309,8 +350,16 @@ def evaluate(
         seed=seed,
         baseline="Nearest-Nbr" if base is not None else None,
         flagged=flagged,
+        unit=unit,
         examples=[(cases[k], pred[k]) for k in range(0, len(cases), max(1, len(cases) // 3))][:3],
     )
+
+
+def _out_of_distribution(placed: Scene, name: str) -> bool:
+    """Whether the placement of ``name`` in ``placed`` is flagged for a reason other than a caveat of the
+    model's (those hold for every placement the caveat names, wherever it lands)."""
+    flags = placed.meta.get("placement", {}).get(name, {}).get("flags", [])
+    return any(not f.startswith(CAVEAT) for f in flags)
 
 
 def _mean(values: Sequence[float | None]) -> float | None:

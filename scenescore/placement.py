@@ -20,8 +20,9 @@ from torch import Tensor
 from tqdm.auto import tqdm
 
 from .costs import Cost, HingeCollision, LearnedEnergy
-from .devices import generator
+from .devices import draw, generator
 from .encoders import Encoder
+from .geometry import compose_poses
 from .learn import TrainConfig, train
 from .models import ScoreModel
 from .problem import FEASIBILITY_TOL, Problem
@@ -37,6 +38,7 @@ __all__ = [
     "place",
     "place_many",
     "in_turn",
+    "refining",
     "placement_problem",
     "covering",
     "CANDIDATE_DENSITY",
@@ -56,7 +58,8 @@ PLACE = LangevinOptions(particles=64, candidates=2048, proposals=0.5, chain=PLAC
 #: on a 0.3 m board (3600 square length scales) need about 8000, where 2048 left the right slot unfound
 #: for 5 of zoo-pcb's 16 test scenes (``benchmarks/zoo_configs.py``'s "misses: search")
 CANDIDATE_DENSITY = 2.0
-MAX_COVERING = 32_768  # the most candidates that covering the bounds asks for
+MAX_COVERING = 32_768
+LOOKAHEAD = True  # the most candidates that covering the bounds asks for
 #: the weight of non-overlap in placement: energy per length scale of penetration (free of units)
 OVERLAP_WEIGHT = 10.0
 
@@ -128,13 +131,16 @@ def in_turn(
     gen = generator(seed, model.device)
     beam: Tensor | None = None  # (particles, k, 3): the first k unknown objects' poses in each particle
     for k in range(len(names)):
-        later = set(names[k + 1 :])
+        ahead = k + 1 < len(names) and LOOKAHEAD
+        later = set(names[k + 2 :] if ahead else names[k + 1 :])
         sub = replace(scene, objects=[o for o in scene.objects if o.name not in later])
         problem = placement_problem(model, sub, energy_only)
         draws = problem.initial(draws_per_stage, gen, proposals=options.proposals)
         if beam is not None:
             rows = torch.arange(len(draws), device=draws.device) % len(beam)
             draws[:, [sub.index(m) for m in names[:k]]] = beam[rows]
+        if ahead:
+            _partner(model, sub, draws, sub.index(names[k]), sub.index(names[k + 1]), gen)
         best = screen(problem.cost, draws, keep)
         beam = best[:, [sub.index(m) for m in names[: k + 1]]]
     full = placement_problem(model, scene, energy_only)
@@ -142,6 +148,33 @@ def in_turn(
     assert beam is not None
     start[:, [scene.index(m) for m in names]] = beam
     return start
+
+
+def _partner(model: ScoreModel, scene: Scene, draws: Tensor, i: int, j: int, gen: torch.Generator) -> None:
+    """Put object ``j`` of half of ``draws``' rows (the first half: its other rows keep their draws) at a
+    pose relative to object ``i``'s draw that the data has between their categories, in place: an
+    object is judged beside the next one to place, so that a slot whose neighbourhood the data only
+    shows full (two chairs at a table for two) is found, where one object alone there scores worse than
+    anywhere else."""
+    ref = model.trust
+    if ref is None:
+        return
+    _, rel = ref.anchored(scene.objects[j].category, [scene.objects[i].category])
+    if not len(rel):
+        return
+    half = len(draws) // 2
+    u = draw("rand", (half,), gen, draws.device, torch.float64)
+    pick = (u * len(rel)).long().clamp(max=len(rel) - 1)
+    r = torch.as_tensor(rel, dtype=draws.dtype, device=draws.device)[pick]
+    draws[:half, j] = compose_poses(draws[:half, i], r)
+
+
+def refining(options: LangevinOptions) -> LangevinOptions:
+    """``options`` for particles that :func:`in_turn` found: its chain's gradient steps all noise-free at
+    its final step size. Its exploring steps, large and noisy, carried several objects out of the
+    narrow minimum of a full table (a chair 15 cm off a slot for two scores worse than anywhere else)."""
+    c = options.chain
+    return replace(options, chain=replace(c, steps=0, final_descent=c.steps + c.final_descent))
 
 
 def _starts(
@@ -175,7 +208,8 @@ def place_many(
             opts = options or covering(PLACE, model, [scenes[i] for i in idx])
             starts = [_starts(model, scenes[i], opts, seed + k, energy_only) for k, i in enumerate(idx)]
             init = None if any(x is None for x in starts) else cast(list[Tensor], starts)
-            results = LangevinSolver(opts).solve_many(problems, seed=seed, init=init)
+            solver = LangevinSolver(opts if init is None else refining(opts))
+            results = solver.solve_many(problems, seed=seed, init=init)
             for i, r in zip(idx, results):
                 out[i] = _filled(scenes[i], r)
     return out
@@ -204,7 +238,7 @@ def place(
     This is ``ss.solve(placement_problem(model, scene), LangevinSolver(opts), seed=seed)`` with ``opts =
     options or covering(PLACE, model, [scene])``: placing and solving give the same answer for the same
     model, seed and options (for several unknown objects, with ``init=in_turn(model, scene, opts,
-    seed)``: the chain starts from particles found one object at a time). By default the
+    seed)`` and :func:`refining` options: descent from particles found one object at a time). By default the
     placed objects keep off the others (:func:`non_overlap`); ``energy_only`` places by the learned
     energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
     """
@@ -213,7 +247,8 @@ def place(
     with torch_threads(1):  # tiny tensors; the chain chooses threads for its particles
         opts = options or covering(PLACE, model, [scene])
         init = _starts(model, scene, opts, seed, energy_only)
-        r = solve(placement_problem(model, scene, energy_only), LangevinSolver(opts), init, seed=seed)
+        solver = LangevinSolver(opts if init is None else refining(opts))
+        r = solve(placement_problem(model, scene, energy_only), solver, init, seed=seed)
         return _filled(scene, r)
 
 

@@ -11,6 +11,7 @@
       - {type: bounds}
       - {type: reach, base: [0.0, -0.5], radius: 0.8}
       - {type: target, object: mug, xy: [0.1, 0.2]}
+      - {type: relation, model: left_of.ckpt, objects: [mug, plate_0]}   # a learned relation
     solver: langevin>osqp        # a solver or a chain
     options: {langevin: {particles: 64}, osqp: {max_iter: 50}}
     seed: 0
@@ -135,6 +136,7 @@ class _Context:
         self.device = device  # where the model is loaded to
         self.at: KeyPath = ()
         self._model: Any = None
+        self._checkpoints: dict[Path, Any] = {}  # resolved path -> model, so that terms share one
 
     def object(self, name: str, at: KeyPath) -> str:
         if name not in self.scene.names:
@@ -164,6 +166,20 @@ class _Context:
 
             self._model = load(mp, device=self.device)
         return self._model
+
+    def checkpoint(self, path: str, at: KeyPath) -> Any:
+        mp = Path(path) if Path(path).is_absolute() else self.root / path
+        key = mp.resolve()
+        if key not in self._checkpoints:
+            if not mp.exists():
+                raise ProblemError(
+                    f"{self.where((*self.at, *at))}: model checkpoint {str(mp)!r} does not exist "
+                    "(train one with `scenescore train DATA.jsonl --out MODEL.ckpt`)"
+                )
+            from .models import load
+
+            self._checkpoints[key] = load(mp, device=self.device)
+        return self._checkpoints[key]
 
 
 def _cost_spec(entry: dict[str, Any], at: KeyPath, where: _Where) -> CostSpec:

@@ -18,10 +18,11 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, BinaryIO, cast
 
 import numpy as np
 
@@ -84,15 +85,17 @@ def check_output_path(path: str | os.PathLike, what: str, folder: bool = False) 
         raise SceneError(f"{what} {p}: the folder {parent} is not writable")
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename: a failure leaves the old file.
-    The file gets the usual permissions (0666 less the umask), not the temporary file's 0600."""
+@contextmanager
+def _atomic_file(path: str | os.PathLike) -> Iterator[BinaryIO]:
+    """A binary file that becomes ``path`` when the block ends (written to a temporary file beside it,
+    then renamed); an error or an interrupt inside the block removes it and leaves the old file. The
+    file gets the usual permissions (0666 less the umask), not the temporary file's 0600."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            yield f
             f.flush()
             os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
@@ -100,6 +103,12 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename: a failure leaves the old file."""
+    with _atomic_file(path) as f:
+        f.write(data)
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
@@ -170,9 +179,11 @@ def _check_polygon_reach(points: list[list[float]], size: Sequence[float], label
 
 
 def fits_bounds(obj: SceneObject, bounds: Bounds) -> bool:
-    """Whether ``obj``'s footprint fits inside ``bounds`` at some heading (checked every half degree)."""
+    """Whether ``obj``'s footprint fits inside ``bounds`` at some heading (checked every half degree),
+    with its origin inside them too: the solvers keep an object's position (its pose, the origin of its
+    outline) within the bounds, so a polygon drawn far from its origin can fit nowhere."""
     (x0, y0), (x1, y1) = bounds
-    pts = obj.polygon()
+    pts = np.vstack([obj.polygon(), np.zeros((1, 2))])  # a box's or a disk's origin is inside already
     t = np.linspace(0.0, np.pi, 361)
     c, s = np.cos(t)[:, None], np.sin(t)[:, None]
     xs = pts[:, 0][None] * c - pts[:, 1][None] * s  # (angles, K)
@@ -186,9 +197,15 @@ def check_fits(obj: SceneObject, bounds: Bounds, where: str) -> None:
     """Raise :class:`SceneError` naming ``obj`` when it cannot be placed inside ``bounds`` at any heading."""
     if not fits_bounds(obj, bounds):
         (x0, y0), (x1, y1) = bounds
+        outline = ""
+        if obj.shape_kind == "polygon":  # the outline, not the size, may be what cannot fit
+            far = float(np.hypot(*obj.polygon().T).max())
+            outline = (
+                f" (its field 'shape.polygon' reaches {far:.3g} m from its pose, which stays inside them)"
+            )
         raise SceneError(
             f"{where}: object {obj.name!r} ({obj.size[0]:g} x {obj.size[1]:g} m) does not fit inside its "
-            f"bounds ({x1 - x0:g} x {y1 - y0:g} m) at any heading; nowhere to place it"
+            f"bounds ({x1 - x0:g} x {y1 - y0:g} m) at any heading{outline}; nowhere to place it"
         )
 
 
@@ -546,6 +563,12 @@ def read_jsonl(path: str | os.PathLike) -> list[Scene]:
     return scenes
 
 
-def write_jsonl(path: str | os.PathLike, scenes: Iterable[Scene]) -> None:
-    """Write scenes one per line, atomically."""
-    atomic_write_text(path, "".join(s.to_json(indent=None) + "\n" for s in scenes))
+def write_jsonl(path: str | os.PathLike, scenes: Iterable[Scene]) -> int:
+    """Write scenes one per line, atomically, as they come (an iterator of scenes is never held whole);
+    returns how many were written. An error while ``scenes`` is drawn leaves the old file."""
+    count = 0
+    with _atomic_file(path) as f:
+        for s in scenes:
+            f.write((s.to_json(indent=None) + "\n").encode("utf-8"))
+            count += 1
+    return count

@@ -1,17 +1,21 @@
-"""Torch threads: the run's thread budget, the count chosen for a batch, and the scoped setting.
+"""Threads: the run's budget, work in pieces side by side, and the scoped torch setting.
 
-Most of this library's tensors are tiny (a few pose sets of a dozen objects), where torch's intra-op
-thread pool costs far more than it saves: its threads wait for each other at every operation, and on a
-busy machine they wait for the cores too (measured: a 32-element ``min`` takes 11 ms with 2 threads on
-a busy 2-core machine, 3 us with 1). Large batches pay for the pool, but only on cores that are free.
+The library's own work runs on one torch thread. Most of its tensors are tiny (a few pose sets of a dozen
+objects), where torch's intra-op pool costs far more than it saves: its threads wait for each other at
+every operation, and on a busy machine they wait for the cores too (measured: a 32-element ``min`` takes
+11 ms with 2 threads on a busy 2-core machine, 3 us with 1). And torch's results depend on its thread
+count: an elementwise function (``silu``) rounds differently where a thread's share of a tensor ends,
+so a model trained on two threads is not the model trained on one. Large batches of the learned energy
+are cut instead into pieces fixed by the batch and the machine's core count, which run side by side on
+worker threads, each piece on one torch thread (:func:`in_parallel`): as fast on free cores, and the
+same numbers however many run at once, so a result never depends on the load.
 
 - :func:`thread_budget` sets the run's budget (``--threads`` on the command line, ``ss.thread_budget``
-  in scripts): the library's automatic choices never exceed it, and with a number given the heavy work
-  uses exactly that many threads. Without one the budget is torch's own setting.
-- :func:`threads_for` is the automatic choice for a batch of pose sets: one thread below
-  :data:`POOL_ROWS` rows; from there the budget (given), else the budget capped by the cores that other
-  processes leave free (measured from ``/proc/stat``, Linux; elsewhere the budget).
-- :func:`torch_threads` runs a block on ``n`` threads and restores the caller's setting.
+  in scripts): the most pieces that run at once. Without one the budget is torch's own setting.
+- :func:`workers` is how many run at once: the budget when given, else the budget capped by the cores
+  other processes leave free (measured from ``/proc/stat``, Linux; elsewhere the budget);
+  :func:`threads_for` is one below :data:`POOL_ROWS` pose sets, else :func:`workers`.
+- :func:`torch_threads` runs a block on ``n`` torch threads and restores the caller's setting.
 - :class:`Ahead` computes work ahead on a second core (one worker thread, one torch thread), where the
   caller can guess what it will need before it knows.
 
@@ -22,14 +26,16 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Hashable, Iterator
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, TypeVar, cast
 
 import torch
 
 from .errors import check_number
+
+T = TypeVar("T")
 
 __all__ = [
     "POOL_ROWS",
@@ -40,6 +46,8 @@ __all__ = [
     "torch_threads",
     "free_cores",
     "usable_cores",
+    "in_parallel",
+    "workers",
     "Ahead",
 ]
 
@@ -93,10 +101,13 @@ def thread_budget(n: int | None = None) -> Iterator[int]:
 
 
 def threads_for(rows: int) -> int:
-    """Torch threads for a batch of ``rows`` pose sets: one below :data:`POOL_ROWS` rows; from there the
-    budget when :func:`thread_budget` gave one, else the budget capped by :func:`free_cores` (at least 1)."""
-    if rows < POOL_ROWS:
-        return 1
+    """Threads for a batch of ``rows`` pose sets: one below :data:`POOL_ROWS` rows, else :func:`workers`."""
+    return 1 if rows < POOL_ROWS else workers()
+
+
+def workers() -> int:
+    """Pieces of work to run at once: the budget when :func:`thread_budget` gave one, else the budget
+    capped by :func:`free_cores` (at least 1)."""
     if _budget is not None:
         return _budget
     free = free_cores()
@@ -117,6 +128,47 @@ def torch_threads(n: int) -> Iterator[int]:
         torch.set_num_threads(old)
         if outermost:
             _outer = None
+
+
+# ---- independent pieces of work on worker threads ------------------------------------------------------
+
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0
+
+
+def _workers(n: int) -> ThreadPoolExecutor:
+    """The process's pool of at least ``n`` worker threads, each on one torch thread (made on first use)."""
+    global _pool, _pool_size
+    if _pool is None or _pool_size < n:
+        if _pool is not None:
+            _pool.shutdown(wait=True)
+        _pool = ThreadPoolExecutor(n, "scenescore-piece", initializer=torch.set_num_threads, initargs=(1,))
+        _pool_size = n
+    return _pool
+
+
+def in_parallel(work: Sequence[Callable[[], T]], parallel: bool = True) -> list[T]:
+    """Each of ``work``'s callables' answers, in order, computed on up to :func:`workers` threads at once
+    (``parallel=False``: one after the other, in the caller's thread).
+
+    Every piece runs on one torch thread, in the caller's thread or a worker's, so the answers are the
+    same whatever number of workers the budget and the load give: a result never depends on the machine
+    being busy. Grad mode is per thread: each callable sets the one it needs."""
+    n = min(len(work), workers()) if parallel and len(work) > 1 else 1
+    if n <= 1:
+        return [w() for w in work]
+    with torch_threads(1):
+        pool = _workers(n)
+        lanes = [pool.submit(_lane, work[k::n]) for k in range(1, n)]
+        out: list[T | None] = [None] * len(work)
+        out[0::n] = _lane(work[0::n])
+        for k, lane in enumerate(lanes, start=1):
+            out[k::n] = lane.result()
+    return cast(list[T], out)
+
+
+def _lane(work: Sequence[Callable[[], T]]) -> list[T]:
+    return [w() for w in work]
 
 
 # ---- the free-core estimate ---------------------------------------------------------------------------

@@ -23,6 +23,16 @@ def test_python_snippets_run(doc, capsys):
     assert "solver langevin>casadi" in capsys.readouterr().out
 
 
+def test_costs_snippets_run(capsys):
+    """docs/costs.md's learned relation: trained briefly, it prefers the arrangement its checker accepts."""
+    blocks = _python_blocks(DOCS / "costs.md")
+    assert blocks, "costs.md has no python block"
+    for code in blocks:
+        exec(compile(code, "costs.md:snippet", "exec"), {"__name__": "snippet"})
+    out = capsys.readouterr().out
+    assert out.startswith("True tensor(")
+
+
 ROOT = DOCS.parent
 
 

@@ -19,6 +19,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.workers", 0),  # worker processes that exit with the run that started them
     ("scenescore.provenance", 0),  # where a result came from: commit, date, versions, device, cores
     ("scenescore.scene", 0),
+    ("scenescore.units", 0),  # the length unit a dataset names, and lengths said in it
     ("scenescore.geometry", 1),
     ("scenescore.exact", 1),
     ("scenescore.vision", 1),  # imaging primitives: render, segment, pose, crop, sprites
@@ -27,15 +28,19 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.vision.graph", 3),  # scene graphs from images (encodes crops)
     ("scenescore.models", 3),
     ("scenescore.models.export", 3),  # ONNX export of the energy (onnx imported only when called)
+    ("scenescore.models.bundled", 3),  # the pretrained models shipped as package data, by name
     ("scenescore.sampling", 4),
     ("scenescore.costs", 5),
+    ("scenescore.costs.relation", 5),  # a learned relation model bound to named objects of a scene
     ("scenescore.problem", 6),
     ("scenescore.scenarios", 7),
     ("scenescore.scenarios.zoo", 7),  # one module per zoo scenario on common.py (ZooScenario)
+    ("scenescore.scenarios.relations", 7),  # spatial relations: exact checkers, example generators
     ("scenescore.solvers", 8),
     ("scenescore.solvers.alm", 8),  # the batched augmented Lagrangian refinement
     ("scenescore.problem_file", 9),
     ("scenescore.learn", 10),  # training the energy: settings, counter-examples, losses, the loop
+    ("scenescore.learn.training_state", 10),  # what a training run writes every so often, to resume from
     ("scenescore.learn.workflow", 10),  # `scenescore train`'s workflow: evaluates and calibrates tidying
     ("scenescore.placement", 10),
     ("scenescore.tidying", 10),  # tidying a messy scene: effort, selection, pruning, the pick-and-place plan
@@ -44,8 +49,10 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.plot", 10),
     ("scenescore.baselines", 10),
     ("scenescore.experiments", 11),
+    ("scenescore.experiments.bundled", 11),  # the figure each pretrained model is documented with
     ("scenescore.cli", 12),
     ("scenescore.cli.export", 12),  # `scenescore export`
+    ("scenescore.cli.reference", 12),  # the command-line reference page, rendered from the parser
     ("scenescore.__main__", 12),
     ("scenescore", 12),  # the package's own __init__: the public face, above everything
 ]

@@ -9,7 +9,6 @@ import pytest
 import torch
 
 import scenescore as ss
-from scenescore.devices import generator
 from scenescore.encoders import FootprintEncoder
 from scenescore.models import ScoreModel
 from scenescore.models.trust import overlapping_categories, reference
@@ -21,8 +20,8 @@ from scenescore.placement import (
     place,
     place_many,
     placement_problem,
+    refining,
 )
-from scenescore.sampling import screen
 from scenescore.solvers.langevin import LangevinSolver
 
 pytestmark = pytest.mark.float_order
@@ -151,23 +150,17 @@ def test_covering_screens_more_candidates_where_the_objects_are_small_for_the_bo
 
 
 def test_several_unknown_objects_start_from_particles_found_one_at_a_time():
-    """The first unknown object is screened with the later ones left out; ``place`` is the chain from
-    those particles, the same as ``ss.solve`` with ``init=in_turn(...)``."""
+    """The unknown objects are screened one at a time, each beside the next (the ones after it left
+    out); ``place`` is the descent from those particles, the same as ``ss.solve`` with
+    ``init=in_turn(...)`` and ``refining`` options."""
     model = _model()
     scene = _scenes()[0].without("fork_0").without("knife_1")
     start = in_turn(model, scene, SMALL, seed=2)
     assert start.shape == (SMALL.particles, len(scene), 3) and start.dtype == torch.float64
     known = [scene.index(o.name) for o in scene.objects if o.pose is not None]
     assert np.array_equal(start[:, known].numpy(), np.repeat(scene.poses()[None, known], SMALL.particles, 0))
-    alone = placement_problem(
-        model, replace(scene, objects=[o for o in scene.objects if o.name != "knife_1"])
-    )
-    draws = alone.initial(SMALL.candidates, generator(2), proposals=SMALL.proposals)
-    first = screen(alone.cost, draws, SMALL.particles)[:, alone.scene.index("fork_0")]
-    # each particle's fork is one of the best forks screened alone (the knife's stage keeps the best pairs)
-    assert all((first == row).all(dim=1).any() for row in start[:, scene.index("fork_0")])
     assert not torch.equal(in_turn(model, scene, SMALL, seed=3), start)
     placed = place(model, scene, SMALL, seed=2)
-    r = ss.solve(placement_problem(model, scene), LangevinSolver(SMALL), start, seed=2)
+    r = ss.solve(placement_problem(model, scene), LangevinSolver(refining(SMALL)), start, seed=2)
     for name in ("fork_0", "knife_1"):
         assert np.array_equal(np.asarray(placed[name].pose), r.poses[scene.index(name)])

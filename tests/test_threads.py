@@ -133,3 +133,52 @@ def test_ahead_raises_the_workers_error_and_is_not_worth_it_on_one_thread():
             ahead.result("x", lambda: 0)  # a failure is not hidden by computing again
     with ss.thread_budget(1):
         assert not th.Ahead.worth()  # --threads 1: no second core
+
+
+def test_in_parallel_answers_in_order_each_piece_on_one_torch_thread():
+    import threading
+
+    def work(k: int):
+        return lambda: (k, threading.current_thread().name, torch.get_num_threads())
+
+    torch.set_num_threads(2)
+    with ss.thread_budget(3):
+        got = th.in_parallel([work(k) for k in range(7)])
+        assert [k for k, _, _ in got] == list(range(7))
+        assert {name.startswith("scenescore-piece") for _, name, _ in got} == {True, False}  # workers too
+        assert all(n == 1 for _, _, n in got)
+        assert torch.get_num_threads() == 3  # the block's setting is back
+        one = th.in_parallel([work(k) for k in range(3)], parallel=False)
+        assert {name for _, name, _ in one} == {threading.current_thread().name}
+
+
+def test_a_seed_names_the_weights_and_placements_whatever_the_load(monkeypatch):
+    """The mechanism behind "a seed names a result": large batches in pieces fixed by the machine's
+    cores, each on one torch thread, so a busy machine (one piece at a time) and an idle one (two at
+    once) give the same model and the same placement, bit for bit."""
+    torch.set_num_threads(2)  # no budget given: the automatic choice, up to two at once
+    monkeypatch.setattr(th, "usable_cores", lambda: 2)  # the pieces: fixed by the machine, not the load
+    # 48 rows of up to 25 books: torch's own threads gave two models here (silu rounds by thread share)
+    scenes = ss.scenarios.get("zoo-books").generate(48, 0)
+    hole = scenes[0].without(scenes[0].objects[1].name)
+    threads_seen: set[str] = set()
+    real = th.in_parallel
+
+    def spy(work, parallel=True):
+        threads_seen.add(f"{th.workers()}")
+        return real(work, parallel)
+
+    monkeypatch.setattr(th, "in_parallel", spy)
+
+    def run():
+        model = train(scenes, TrainConfig(iterations=1), seed=0, progress=False)
+        placed = place(model, hole, LangevinOptions(particles=256, chain=SHORT), seed=0)
+        return [p.detach().clone() for p in model.net.parameters()], placed
+
+    monkeypatch.setattr(th, "free_cores", lambda: 0.2)  # busy: one piece at a time
+    busy_w, busy_p = run()
+    monkeypatch.setattr(th, "free_cores", lambda: 2.0)  # idle: two at once
+    idle_w, idle_p = run()
+    assert threads_seen == {"1", "2"}  # the energy did run in pieces, one and two at once
+    assert all(torch.equal(a, b) for a, b in zip(busy_w, idle_w, strict=True))
+    assert [o.pose for o in busy_p.objects] == [o.pose for o in idle_p.objects]

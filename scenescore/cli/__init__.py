@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import torch
 
+    from ..models import ScoreModel
+
 # modules of this package that add sub-commands, in the order --help lists them
 COMMAND_MODULES = [
     "demo",
@@ -125,8 +127,8 @@ def add_common(p: argparse.ArgumentParser, seed: int | None = 0, seed_help: str 
         "--threads",
         type=number(1, MAX_THREADS, integer=True),
         default=None,
-        help="torch threads for this run: large batches use this many, tiny tensors one (default: "
-        "automatic, one for tiny tensors and the free cores for large batches)",
+        help="the most threads this run's large batches use at once, in pieces of one torch thread each: "
+        "the same results for any N (default: the cores other processes leave free)",
     )
 
 
@@ -146,6 +148,29 @@ def device_of(args: argparse.Namespace) -> torch.device:
     from ..devices import resolve_device
 
     return resolve_device(args.device, "--device")
+
+
+def add_model(p: argparse.ArgumentParser) -> None:
+    """The positional ``model`` of a command that loads one: a checkpoint file, or the name of a model
+    the package ships; read it with :func:`model_of`."""
+    p.add_argument(
+        "model",
+        help="checkpoint from `scenescore train`, or a scenario's name (dining, tv, zoo-pcb, ...) for the "
+        "pretrained model the package ships for it",
+    )
+
+
+def model_of(args: argparse.Namespace, device: torch.device | None = None) -> ScoreModel:
+    """``args.model`` loaded onto ``device``: the checkpoint it names, or, for a bare name (no folder,
+    no extension) that is not a file here, the package's pretrained model of that name."""
+    from pathlib import Path
+
+    from ..models import load, pretrained
+
+    path = Path(args.model)
+    if path.exists() or path.suffix or path.name != args.model:
+        return load(path, device=device)
+    return pretrained(args.model, device=device)
 
 
 def provenance_of(args: argparse.Namespace, seconds: float) -> dict:
@@ -172,7 +197,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     """Every output path the command was given can be written, checked before any work is done."""
     from ..scene import check_output_path
 
-    for attr in ("out", "plot", "report", "scene_out", "images"):
+    for attr in ("out", "plot", "report", "scene_out", "images", "state"):
         value = getattr(args, attr, None)
         if isinstance(value, (str, os.PathLike)):
             folder = attr == "images" or (attr == "out" and args.command in FOLDER_OUTPUTS)

@@ -43,13 +43,21 @@ def _choices(action: argparse.Action) -> list[str] | None:
     return [str(c) for c in action.choices] if action.choices is not None else None
 
 
+def subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, str, argparse.ArgumentParser]]:
+    """``(name, help, parser)`` of each subcommand ``parser`` has, in the order ``--help`` lists them
+    (none for a parser without subcommands); the command-line reference walks nested ones with it."""
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    if sub is None:
+        return []
+    helps = {a.dest: a.help or "" for a in sub._choices_actions}
+    return [(name, helps.get(name, ""), p) for name, p in sub.choices.items()]
+
+
 def commands(parser: argparse.ArgumentParser) -> list[Command]:
     """Every subcommand of ``parser``, in the order ``--help`` lists them."""
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    helps = {a.dest: a.help or "" for a in sub._choices_actions}
     out = []
-    for name, p in sub.choices.items():
-        cmd = Command(name, helps.get(name, ""))
+    for name, help_text, p in subcommands(parser):
+        cmd = Command(name, help_text)
         for a in p._actions:
             if not a.option_strings:
                 many = a.nargs in ("*", "+", argparse.REMAINDER)

@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import shutil
+from collections.abc import Iterator
+from dataclasses import replace
+from itertools import chain, islice
 from pathlib import Path
 from typing import Any
 
 from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
-from ..memory import check
+from ..learn.training_state import SAVE_EVERY
+from ..memory import check, format_gb
 from ..scene import Scene, check_output_path, read_jsonl, write_jsonl
 from . import ITERATIONS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
@@ -98,6 +103,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     )
     _add_train_inputs(p)
     _add_train_outputs(p)
+    _add_train_state(p)
     add_common(p)
     add_device(p)
     p.set_defaults(func=run_train)
@@ -171,6 +177,32 @@ def _add_train_outputs(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_train_state(p: argparse.ArgumentParser) -> None:
+    """``scenescore train``'s training state: where a run that is killed resumes from."""
+    p.add_argument(
+        "--state",
+        type=Path,
+        default=None,
+        help="where the training state is written every --save-every iterations (weights, optimiser, "
+        "averaged weights, chains, random streams; default: --out with .state appended); removed once "
+        "the checkpoint is written",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="go on from the training state (when there is one) to the checkpoint an uninterrupted run "
+        "with the same data, settings and --seed writes (bit for bit on the CPU); a state of "
+        "another training is refused",
+    )
+    p.add_argument(
+        "--save-every",
+        type=number(1, integer=True),
+        default=SAVE_EVERY,
+        metavar="N",
+        help=f"iterations between two training states (default {SAVE_EVERY})",
+    )
+
+
 def run_generate(args: argparse.Namespace) -> int:
     from ..scenarios import available, describe, get
 
@@ -181,11 +213,17 @@ def run_generate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None and args.images is None:
         raise UserError("give --out FILE.jsonl and/or --images DIR")
-    scenes = _generate_within_budget(get(args.scenario), args.scenario, args.n, args.seed)
+    scenario = get(args.scenario)
     if args.out is not None:
-        write_jsonl(args.out, scenes)
-        print(f"wrote {len(scenes)} {args.scenario} scenes to {args.out}")
-    if args.images is not None:
+        check_output_path(args.out, "--out")  # before any scene is drawn
+    # the images are rendered from a list (held whole, within the memory budget); the JSONL alone streams
+    scenes = (
+        None if args.images is None else _generate_within_budget(scenario, args.scenario, args.n, args.seed)
+    )
+    if args.out is not None:
+        count = _write_generated(scenario, args.scenario, args.n, args.seed, args.out, not args.quiet, scenes)
+        print(f"wrote {count} {args.scenario} scenes to {args.out}")
+    if scenes is not None:
         from ..vision import write_rendered_dataset
 
         kw = {} if args.ppm is None else {"ppm": args.ppm}
@@ -194,13 +232,55 @@ def run_generate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_generated(
+    scenario: Any, name: str, n: int, seed: int, out: Path, progress: bool, scenes: list[Scene] | None
+) -> int:
+    """Write ``n`` scenes of ``scenario`` (``scenes`` when already drawn) to ``out`` as JSONL, atomically,
+    with a progress bar; returns how many. A scenario with ``iter_scenes`` (the bundled ones) is drawn one
+    scene at a time as the file is written, so memory stays that of a scene whatever ``n`` (the same
+    scenes as ``generate``); another is generated whole within the memory budget. Refused before the
+    file is begun when the first scenes say that it would not fit the disk's free space."""
+    from tqdm.auto import tqdm
+
+    if scenes is not None:
+        it: Iterator[Scene] = iter(scenes)
+    elif hasattr(scenario, "iter_scenes"):
+        it = scenario.iter_scenes(n, seed)
+    else:
+        it = iter(_generate_within_budget(scenario, name, n, seed))
+    head = list(islice(it, GENERATE_SAMPLE))
+    _check_disk(out, name, n, head)
+    # the built-in scenarios are in metres: say so, so that reports print centimetres (scenescore.units)
+    marked = (replace(s, meta={**s.meta, "unit": "m"}) for s in chain(head, it))
+    with tqdm(marked, total=n, desc=f"generate {name}", unit="scene", disable=not progress) as bar:
+        return write_jsonl(out, bar)
+
+
+def _check_disk(out: Path, name: str, n: int, head: list[Scene]) -> None:
+    """Refuse ``n`` scenes whose JSONL, estimated from the first ones, is larger than the free space where
+    ``out`` is written (the file is written whole before it replaces an older one)."""
+    if not head:
+        return
+    text = sum(len((s.to_json(indent=None) + "\n").encode("utf-8")) for s in head) / len(head)
+    folder = out.parent
+    while not folder.exists():
+        folder = folder.parent
+    free = shutil.disk_usage(folder).free
+    if n * text > free:
+        raise UserError(
+            f"generate {name}: {n} scenes (~{text:.0f} bytes of JSON each) would write "
+            f"~{format_gb(n * text)} GB to {out}, more than the {format_gb(free)} GB free in {folder}; "
+            "lower --n or free some space"
+        )
+
+
 def _generate_within_budget(scenario: Any, name: str, n: int, seed: int) -> list[Scene]:
     """``scenario.generate(n, seed)``, refused by the memory budget first when ``n`` scenes would not fit.
 
-    A scenario draws its scenes from one random stream over the whole call, so ``n`` scenes cannot be
-    made in batches with the same result: they are all held at once, and their JSONL text too while it
-    is written. The bytes per scene are estimated from the first :data:`GENERATE_SAMPLE` scenes (the
-    same call's, so for as many scenes or fewer they are the answer)."""
+    For the images (rendered from a list) and for a scenario without ``iter_scenes``: a scenario draws its
+    scenes from one random stream over the whole call, so they cannot be made in batches with the same
+    result, and ``n`` of them are held at once. The bytes per scene are estimated from the first
+    :data:`GENERATE_SAMPLE` scenes (the same call's, so for as many scenes or fewer they are the answer)."""
     sample = scenario.generate(min(n, GENERATE_SAMPLE), seed)
     if n <= GENERATE_SAMPLE:
         return list(sample)
@@ -271,11 +351,14 @@ def run_train(args: argparse.Namespace) -> int:
             device=device,
             progress=not args.quiet,
             source=args.data,
+            state=args.state or args.out.with_name(args.out.name + ".state"),
+            resume=args.resume,
+            save_every=args.save_every,
         )
     except NothingLearned as e:
         raise UserError(
             f"the training loss ({e.final_loss:.3f}) never fell below chance ({e.chance_loss:.3f}): "
             f"the model learned nothing, so {args.out} was not written; train longer (--iterations) or "
-            "pass --force to write it anyway"
+            "pass --force to write it anyway (with --resume: without training again)"
         ) from None
     return 0

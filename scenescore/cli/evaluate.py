@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import UserError, add_common, add_device, device_of
+from . import UserError, add_common, add_device, add_model, device_of, model_of
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -15,11 +15,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="leave-one-object-out placement error per category on labelled scenes",
         description=(
             "Mask each movable object of every scene in turn (or only --objects), place it back with the "
-            "model and print the errors per category (position cm, orientation deg), the held-out InfoNCE "
+            "model and print the errors per category (position in the unit the scenes' meta.unit names, cm "
+            "for metres, else in the data's own unit; orientation deg), the held-out InfoNCE "
             "loss and, with --train-data, the nearest-neighbour baseline: the table `scenescore train` prints."
         ),
     )
-    p.add_argument("model", type=Path, help="checkpoint (.ckpt)")
+    add_model(p)
     p.add_argument("data", type=Path, help=".jsonl of scenes with every pose known")
     p.add_argument("--train-data", type=Path, default=None, help="the training .jsonl, for the baseline")
     p.add_argument(
@@ -35,14 +36,13 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from ..evaluation import evaluate
-    from ..models import load
     from ..scene import atomic_write_text, read_jsonl
 
     device = device_of(args)
     for f in (args.data, args.train_data):
         if f is not None and not f.exists():
             raise UserError(f"{f}: no such file")
-    model = load(args.model, device=device)
+    model = model_of(args, device)
     scenes = read_jsonl(args.data)
     train = read_jsonl(args.train_data) if args.train_data else None
     objects = [n.strip() for n in args.objects.split(",")] if args.objects else None

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from . import ITERATIONS, JOBS, SCENES, SEEDS, UserError, add_common, add_device, device_of
+from . import ITERATIONS, JOBS, SCENES, SEEDS, UserError, add_common, add_device, device_of, number
 
 if TYPE_CHECKING:
     from ..experiments.report import Row
@@ -21,6 +21,7 @@ OWN_OPTIONS: dict[str, tuple[str, ...]] = {
     "--scenarios": ("zoo", "tidy"),
     "--jobs": ("missing", "novel", "compose", "zoo", "tidy"),
     "--energy-only": ("zoo",),
+    "--train-scenes": ("zoo",),
     "--test-scenes": ("tidy",),
     "--efforts": ("tidy",),
     "--iterations": ("tidy",),
@@ -83,6 +84,13 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         help="worker processes, one thread each (default: one per usable core, 1 with --device cuda; "
         "1 runs everything in this process): compose, missing and novel run their seeds in them, zoo its "
         "scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
+    )
+    p.add_argument(
+        "--train-scenes",
+        type=number(2, 48, integer=True),
+        default=None,
+        help="zoo: train on the first N of each split's 48 training scenes, the same test scenes "
+        "(12: the small-data variant; default all 48)",
     )
     p.add_argument(
         "--energy-only",
@@ -391,6 +399,7 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         energy_only=args.energy_only,
         device=args.device,
         cache=args.model_cache,
+        train_scenes=args.train_scenes,
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case, indent=1) + "\n")
@@ -410,7 +419,7 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     if rooms:
         removed += f" (three chairs at once in {', '.join(rooms)}, matched to the truths by assignment)"
     md += (
-        f"48 training and 16 test scenes per scenario and seed, {removed} and placed "
+        f"{args.train_scenes or 48} training and 16 test scenes per scenario and seed, {removed} and placed "
         f"back {how}; {args.seeds} seed(s); every placement in cases.json; each scenario's worst in worst.png.\n\n"
     )
     return md + zoo.format_zoo(res), res.rows()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common, number
+from . import UserError, add_common, add_model, model_of, number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "documents what to feed). --check compares onnxruntime with torch on a scene."
         ),
     )
-    p.add_argument("model", type=Path, help="checkpoint from `scenescore train`")
+    add_model(p)
     p.add_argument(
         "--out",
         "--onnx",
@@ -47,7 +47,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..models import load
     from ..models.export import energy_inputs, export_embedding_onnx, export_onnx, require
     from ..scene import Scene, check_output_path
 
@@ -64,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         if not args.check.exists():
             raise UserError(f"--check {args.check}: no such file")
         scene = Scene.from_json(args.check)
-    model = load(args.model)
+    model = model_of(args)
     export_onnx(model, args.out, opset=args.opset)
     if args.embed_onnx is not None:
         export_embedding_onnx(model, args.embed_onnx, opset=args.opset)

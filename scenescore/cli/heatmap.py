@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import UserError, add_common, add_device, device_of, number
+from . import UserError, add_common, add_device, add_model, device_of, model_of, number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -17,7 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "object where the scene puts it, and draw the heatmap with the minimum marked."
         ),
     )
-    p.add_argument("model", type=Path, help="checkpoint from `scenescore train`")
+    add_model(p)
     p.add_argument("scene", type=Path, help="scene JSON; every object but --object needs a pose")
     p.add_argument("--object", required=True, help="the object to move over the grid")
     p.add_argument("--out", type=Path, required=True, help="PNG to write")
@@ -32,7 +32,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..heatmap import energy_grid, grid_minimum
-    from ..models import load
     from ..plot import draw_heatmap
     from ..scene import Scene
 
@@ -45,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     others = [n for n in scene.unknown if n != args.object]
     if others:
         raise UserError(f"{args.scene}: {others} have no pose; only --object may be null")
-    model = load(args.model, device=device)
+    model = model_of(args, device)
     xs, ys, e = energy_grid(model, scene, args.object, args.resolution, theta=args.theta)
     mn = grid_minimum(xs, ys, e)
     pose = scene[args.object].pose  # the scene's own pose of the object, when it gives one

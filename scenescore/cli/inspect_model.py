@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from . import add_common
+from . import add_common, add_model, model_of
 
 if TYPE_CHECKING:
     from ..models import ScoreModel
@@ -25,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "scene count and losses, tidy's calibration and the held-out validation summary."
         ),
     )
-    p.add_argument("model", type=Path, help="checkpoint (.ckpt)")
+    add_model(p)
     p.add_argument("--json", action="store_true", help="print everything as one JSON object, lists in full")
     add_common(p)
     p.set_defaults(func=run)
@@ -51,6 +51,7 @@ def describe(model: ScoreModel, path: str | Path) -> dict[str, Any]:
         "losses": {"final": info.final_loss, "chance": info.chance_loss, "history": info.history},
         "tidy_calibration": info.tidy.to_dict() if info.tidy is not None else None,
         "validation": info.validation,
+        "caveats": info.caveats.to_dict() if info.caveats is not None else None,  # flagged in every placement
         "trust_reference": info.trust is not None,
         "other": info.extra or None,
     }
@@ -90,9 +91,7 @@ def scalar(v: Any) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..models import load
-
-    model = load(args.model)
+    model = model_of(args)
     data = describe(model, args.model)
     if args.json:
         print(json.dumps(data, indent=1))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..solvers.langevin import MAX_PARTICLES
-    from . import add_common, add_device, number
+    from . import add_common, add_device, add_model, number
 
     p = sub.add_parser(
         "place",
@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "left (exact check)."
         ),
     )
-    p.add_argument("model", type=Path, help="checkpoint from `scenescore train`")
+    add_model(p)
     p.add_argument("scene", type=Path, help="scene JSON with some poses null")
     p.add_argument("--out", type=Path, help="write the filled scene here")
     p.add_argument("--plot", type=Path, help="draw the scene, placed objects marked, to this PNG")
@@ -43,14 +43,13 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from dataclasses import replace
 
-    from ..models import load
     from ..placement import PLACE, covering, overlapping, place
     from ..plot import plot_scene
     from ..scene import Scene
-    from . import UserError, device_of
+    from . import UserError, device_of, model_of
 
     device = device_of(args)
-    model = load(args.model, device=device)
+    model = model_of(args, device)
     scene = Scene.from_json(args.scene)
     names = scene.unknown
     if not names:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..tidying import EFFORT
-    from . import add_common, add_device
+    from . import add_common, add_device, add_model
 
     p = sub.add_parser(
         "tidy",
@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "(parking one at a buffer pose where two objects swap places)."
         ),
     )
-    p.add_argument("model", type=Path, help="checkpoint from `scenescore train`")
+    add_model(p)
     p.add_argument("scene", type=Path, help="scene JSON, every pose known (the current state)")
     p.add_argument(
         "--effort",
@@ -62,15 +62,14 @@ def _reach(text: str | None) -> tuple[tuple[float, float], float] | None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..models import load
     from ..plot import plot_tidy
     from ..scene import Scene
     from ..tidying import tidy
-    from . import device_of
+    from . import device_of, model_of
 
     device = device_of(args)
     reach = _reach(args.reach)
-    model = load(args.model, device=device)
+    model = model_of(args, device)
     scene = Scene.from_json(args.scene)
     stay = [n.strip() for n in args.stay.split(",") if n.strip()] if args.stay else []
     r = tidy(model, scene, effort=args.effort, seed=args.seed, stay=stay, reach=reach)

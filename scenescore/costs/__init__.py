@@ -31,6 +31,7 @@ from .reach import ReachLimit
 from .target import PoseTarget
 from .effort import Anchor, Displacement, EffortTerm, MoveCount
 from .function import CostFn
+from .relation import Relation
 
 # isort: on
 
@@ -51,6 +52,7 @@ __all__ = [
     "MoveCount",
     "PoseTarget",
     "ReachLimit",
+    "Relation",
     "SpecContext",
     "Sum",
     "SymbolicProblem",

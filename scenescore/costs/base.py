@@ -486,6 +486,10 @@ class SpecContext(Protocol):
         """The problem file's trained model (its top-level ``model`` key), loaded once."""
         ...
 
+    def checkpoint(self, path: str, at: tuple[str | int, ...]) -> Any:
+        """The model in the checkpoint at ``path`` (relative to the problem file), loaded once per file."""
+        ...
+
 
 #: a coordinate in metres in a YAML spec: finite and within the range scenes allow
 Coordinate = Annotated[float, Field(ge=-MAX_LENGTH, le=MAX_LENGTH)]

@@ -164,6 +164,7 @@ def run_one(
     place: LangevinOptions | None = None,
     val: float = 0.0,
     cache: Any = None,
+    train_scenes: int | None = None,
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
     the learned energy alone, the paper's protocol; ``place``: placement options instead of
@@ -171,11 +172,16 @@ def run_one(
     ``device``; ``val``: the fraction of the training scenes held out for validation, as ``scenescore
     train --val`` (default none: the 48 training scenes are the trust reference; holding out train's
     15% left two zoo-bedroom nightstands 84 and 93 cm off, where training on all 48 left none over
-    25 cm); ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``{"cases", "worst",
-    "seconds"}``."""
+    25 cm); ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``train_scenes``: train on
+    the first that many of the split's training scenes (the small-data variant; the test scenes are the
+    same); ``{"cases", "worst", "seconds"}``."""
     t0 = time.perf_counter()
     sc = get(name)
     train_s, test_s = sc.split(seed)
+    if train_scenes is not None:
+        if not 2 <= train_scenes <= len(train_s):
+            raise SceneError(f"zoo: train_scenes must be 2 to {len(train_s)}, got {train_scenes}")
+        train_s = train_s[:train_scenes]
     train_s, held = split_validation(train_s, val, seed=seed)
     model = train(
         train_s,
@@ -264,10 +270,11 @@ def _pair(
     place: LangevinOptions | None,
     val: float,
     cache: Any,
+    train_scenes: int | None = None,
 ) -> dict[str, Any]:
     """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done."""
     name, seed = task
-    one = run_one(name, seed, config, progress, energy_only, device, place, val, cache)
+    one = run_one(name, seed, config, progress, energy_only, device, place, val, cache, train_scenes)
     got = one["cases"]
     log(
         f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
@@ -289,11 +296,13 @@ def run(
     place: LangevinOptions | None = None,
     val: float = 0.0,
     cache: Any = None,
+    train_scenes: int | None = None,
 ) -> ZooResult:
     """The zoo table over ``seeds`` seeds for ``scenarios`` (default every zoo scenario but the rooms,
     whose training takes far longer; ``config``: the training settings; default the CLI's;
     ``device``: where the models train and place; ``place``: placement options; ``val``: the validation
-    fraction held out of the training scenes; ``cache``: a model cache folder; :func:`run_one`).
+    fraction held out of the training scenes; ``cache``: a model cache folder; ``train_scenes``: train
+    on that many of the 48 training scenes (12: the small-data variant); :func:`run_one`).
 
     ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
     largest scenarios first; each pair's figures do not depend on ``jobs``.
@@ -316,6 +325,7 @@ def run(
         place=place,
         val=val,
         cache=cache,
+        train_scenes=train_scenes,
     )
     done = dict(zip(tasks, map_in_workers(pair, tasks, jobs, log, "zoo" if progress else None)))
     res = ZooResult()

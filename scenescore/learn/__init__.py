@@ -7,6 +7,7 @@
 - ``losses.py``: InfoNCE and the regularisers, the held-out loss;
 - ``size_groups.py``: a batch's energies in groups of similar object counts;
 - ``loop.py``: :func:`train`, the training alone; ``cache.py``: the model cache it may use;
+  ``training_state.py``: the state it writes every so often, that a killed run resumes from;
 - ``logs.py``: TensorBoard logs;
 - ``workflow.py``: :func:`~scenescore.learn.workflow.train_model` (``ss.train``), what
   ``scenescore train`` does: hold scenes out, train, evaluate, calibrate tidying, report, save (not
@@ -26,6 +27,7 @@ from .logs import log_validation, require_tensorboard, summary_writer
 from .loop import train
 from .losses import heldout_loss, infonce_loss
 from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
+from .training_state import SAVE_EVERY, StateError
 
 __all__ = [
     "TrainConfig",
@@ -49,4 +51,6 @@ __all__ = [
     "require_tensorboard",
     "summary_writer",
     "log_validation",
+    "StateError",
+    "SAVE_EVERY",
 ]

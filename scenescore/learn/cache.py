@@ -13,6 +13,7 @@ import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import torch
 
@@ -20,7 +21,12 @@ from ..encoders import Encoder
 from ..scene import Scene
 from .config import TrainConfig
 
-__all__ = ["cached_path"]
+__all__ = ["cached_path", "digest"]
+
+
+def digest(value: Any) -> str:
+    """A short hash of a JSON value (its keys sorted): what names a training's files."""
+    return hashlib.sha256(json.dumps(value, sort_keys=True).encode()).hexdigest()[:24]
 
 
 def cached_path(
@@ -47,5 +53,4 @@ def cached_path(
         # process's threads is not the one a one-thread worker would train
         "threads": torch.get_num_threads(),
     }
-    key = hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
-    return Path(folder) / f"{key}.ckpt"
+    return Path(folder) / f"{digest(what)}.ckpt"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -22,10 +23,11 @@ from tqdm.auto import tqdm
 
 from ..devices import draw, generator, resolve_device
 from ..encoders import Encoder
+from ..errors import ConfigError, check_number
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
 from ..models.trust import reference
 from ..scene import Scene
-from ..threads import threads_for, torch_threads
+from ..threads import torch_threads
 from .cache import cached_path
 from .config import Derived, TrainConfig, derive
 from .data import check_training_data
@@ -33,6 +35,7 @@ from .logs import summary_writer
 from .losses import ABSENT, training_loss
 from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
 from .size_groups import SizeGroups
+from .training_state import SAVE_EVERY, Progress, Trainer, read_state, state_key, write_state
 
 __all__ = ["train", "fit", "moving_average"]
 
@@ -47,6 +50,10 @@ def train(
     log_dir: str | os.PathLike | None = None,
     device: str | torch.device | None = None,
     cache: str | os.PathLike | None = None,
+    state: str | os.PathLike | None = None,
+    resume: bool = False,
+    save_every: int = SAVE_EVERY,
+    keep_state: bool = False,
 ) -> ScoreModel:
     """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
 
@@ -59,6 +66,15 @@ def train(
     device (drawn on the CPU), its counter-examples' random numbers come from a generator there.
     ``cache``: a folder where the model is kept, and loaded from instead of trained when the same
     training ran before (:mod:`scenescore.learn.cache`; not with an ``encoder`` or a ``log_dir``).
+    ``state``: a file where the run writes where it stands every ``save_every`` iterations and at its
+    end (:mod:`scenescore.learn.training_state`: weights, optimiser, averaged weights, chains, random
+    streams, iteration), so that a killed run can go on. ``resume``: go on from that file when it exists
+    (else start from the beginning, saying so), to the model an uninterrupted run with this seed trains,
+    bit for bit on the CPU; a state of other scenes, settings, encoder, seed or device is
+    refused with a :class:`~scenescore.learn.training_state.StateError` naming the file. The file is
+    removed once training ends, unless ``keep_state`` (its last state holds the finished training, so
+    resuming from it trains no more; :func:`~scenescore.learn.workflow.train_model` removes it once the
+    checkpoint is written).
 
     This is the training alone; :func:`scenescore.learn.workflow.train_model` (``ss.train``) also holds
     scenes out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
@@ -66,20 +82,45 @@ def train(
     cfg = config or TrainConfig()
     dev = resolve_device(device)
     check_training_data(scenes)
+    check_number("train", "save_every", save_every, 1, integer=True)
+    if resume and state is None:
+        raise ConfigError("train: resume=True needs the state file to resume from (state=...)")
     cached = cached_path(cache, scenes, cfg, encoder, seed, validation, dev) if log_dir is None else None
     if cached is not None and cached.exists():
         return load(cached, device=dev)
+    from_state = _from_state(state, resume)
     writer = summary_writer(log_dir) if log_dir is not None else None
     try:
-        with torch_threads(1):  # tiny tensors; the training loop chooses threads for its batch
-            model = fit(scenes, cfg, encoder, seed, progress, validation, writer, dev)
+        with torch_threads(1):  # large batches run in pieces side by side (EnergyNet.forward)
+            model = fit(
+                scenes, cfg, encoder, seed, progress, validation, writer, dev, state, from_state, save_every
+            )
     finally:
         if writer is not None:
             writer.close()
+    if state is not None and not keep_state:
+        Path(state).unlink(missing_ok=True)
     if cached is not None:
         Path(cached).parent.mkdir(parents=True, exist_ok=True)
         model.save(cached)  # atomic: a worker training the same model at once writes the same file
     return model
+
+
+def _from_state(state: str | os.PathLike | None, resume: bool) -> bool:
+    """Whether the run goes on from ``state``: when resuming and the file exists. Either way where it
+    differs from what was asked is said: no state to resume from, or an earlier one to be overwritten."""
+    if state is None:
+        return False
+    there = Path(state).exists()
+    if resume and not there:
+        print(f"note: no training state at {state} yet; training from the start", file=sys.stderr)
+    elif there and not resume:
+        print(
+            f"note: {state} holds the training state of an earlier run; training from the start and "
+            "overwriting it (resume to go on from it)",
+            file=sys.stderr,
+        )
+    return resume and there
 
 
 def fit(
@@ -91,9 +132,14 @@ def fit(
     validation: Sequence[Scene],
     writer: Any,
     device: torch.device,
+    state: str | os.PathLike | None = None,
+    resume: bool = False,
+    save_every: int = SAVE_EVERY,
 ) -> ScoreModel:
     """The training itself, on data :func:`train` checked: a new model, trained, its weights averaged,
-    its :class:`~scenescore.models.ModelInfo` filled (``writer``: a TensorBoard writer, or None)."""
+    its :class:`~scenescore.models.ModelInfo` filled (``writer``: a TensorBoard writer, or None).
+    ``state``: where to write the training state every ``save_every`` iterations and at the end;
+    ``resume``: start from the state there (which must exist)."""
     torch.manual_seed(seed)
     gen = generator(seed, device)
     d = derive(cfg, scenes, encoder)
@@ -104,38 +150,32 @@ def fit(
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(
         opt, T_max=max(cfg.iterations, 1), eta_min=cfg.lr_final
     )
-    history: list[float] = []
-    shadow: list[torch.Tensor] | None = None  # the weights' moving average (TrainConfig.average)
-    t0 = time.perf_counter()
-    bar = tqdm(range(cfg.iterations), desc="train", disable=not progress, unit="it", dynamic_ncols=True)
+    t = Trainer(model, opt, sched, buf, gen)
+    key = state_key(scenes, cfg, d.encoder, seed, device)
+    run = read_state(state, key, t) if resume and state is not None else Progress()
+    t0 = time.perf_counter() - run.seconds
+    bar = tqdm(
+        range(run.iteration, cfg.iterations),
+        initial=run.iteration,
+        total=cfg.iterations,
+        desc="train",
+        disable=not progress,
+        unit="it",
+        dynamic_ncols=True,
+    )
     for it in bar:
-        # the chains and the loss run on batch * negatives pose sets: threads chosen for that batch
-        # (re-chosen every iteration, so a machine that gets busy mid-run is met with fewer), restored after
-        with torch_threads(threads_for(d.batch_scenes * cfg.negatives)):
-            loss, infonce = _loss(model, cfg, d, data, buf, gen, device)
-            if not torch.isfinite(loss):
-                raise FloatingPointError(
-                    f"train: loss became {loss.item()} at iteration {it}; lower TrainConfig.lr"
-                )
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(model.net.parameters(), 10.0)
-            opt.step()
-            if writer is not None:
-                writer.add_scalar("train/loss", loss.item(), it)
-                writer.add_scalar("train/infonce", infonce.item(), it)
-                writer.add_scalar("train/lr", opt.param_groups[0]["lr"], it)
-            sched.step()
-            if d.decay and it >= d.averaged_from:
-                shadow = moving_average(shadow, list(model.net.parameters()), d.decay)
-            history.append(loss.item())
-            if it % 20 == 0:
-                bar.set_postfix(loss=f"{sum(history[-20:]) / len(history[-20:]):.3f}")
+        _iterate(t, cfg, d, data, run, writer, it)
+        run.iteration, run.seconds = it + 1, time.perf_counter() - t0
+        if state is not None and (run.iteration % save_every == 0 or run.iteration == cfg.iterations):
+            write_state(state, key, run, t)
+        if it % 20 == 0:
+            bar.set_postfix(loss=f"{sum(run.history[-20:]) / len(run.history[-20:]):.3f}")
     model.net.eval()
-    if shadow is not None:
+    if run.shadow is not None:
         with torch.no_grad():
-            for p, a in zip(model.net.parameters(), shadow, strict=True):
+            for p, a in zip(model.net.parameters(), run.shadow, strict=True):
                 p.copy_(a)
+    history = run.history
     model.info = ModelInfo(
         train_config=cfg.to_dict(),
         seed=seed,
@@ -150,6 +190,30 @@ def fit(
     )
     model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
     return model
+
+
+def _iterate(
+    t: Trainer, cfg: TrainConfig, d: Derived, data: SceneTensors, run: Progress, writer: Any, it: int
+) -> None:
+    """Iteration ``it``: one optimiser step on the loss, the learning rate's step, the weights' moving
+    average and the loss history updated."""
+    # one torch thread (train's setting): the network takes a large batch in pieces that run side by
+    # side on the cores left free (EnergyNet.forward), so the weights never depend on the load
+    loss, infonce = _loss(t.model, cfg, d, data, t.buf, t.gen, t.buf.device)
+    if not torch.isfinite(loss):
+        raise FloatingPointError(f"train: loss became {loss.item()} at iteration {it}; lower TrainConfig.lr")
+    t.opt.zero_grad(set_to_none=True)
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(t.model.net.parameters(), 10.0)
+    t.opt.step()
+    if writer is not None:
+        writer.add_scalar("train/loss", loss.item(), it)
+        writer.add_scalar("train/infonce", infonce.item(), it)
+        writer.add_scalar("train/lr", t.opt.param_groups[0]["lr"], it)
+    t.sched.step()
+    if d.decay and it >= d.averaged_from:
+        run.shadow = moving_average(run.shadow, list(t.model.net.parameters()), d.decay)
+    run.history.append(loss.item())
 
 
 def _loss(
@@ -168,11 +232,11 @@ def _loss(
     rep = batch.repeat(k)  # (batch * k, ...)
     sizes = SizeGroups(batch.mask.sum(dim=1), cfg.group_sizes)
     model.net.eval()
-    energy = sizes.bound(model, rep, k)
-    neg = buf.advance(rows, energy, rep, d.chain, cfg.chain_steps)
+    # the chains need the poses' gradient alone: large batches go in pieces, side by side
+    neg = buf.advance(rows, sizes.bound(model, rep, k, weight_grads=False), rep, d.chain, cfg.chain_steps)
     model.net.train()
     e_pos = sizes.bound(model, batch)(batch.poses)
-    e_neg, e_real = _counter_energies(model, cfg, batch, sizes, energy(neg), gen)
+    e_neg, e_real = _counter_energies(model, cfg, batch, sizes, sizes.bound(model, rep, k)(neg), gen)
     return training_loss(cfg, model, e_pos, e_neg, e_real, neg, rep)
 
 

@@ -15,7 +15,7 @@ from ..devices import generator
 from ..models import SceneTensors, ScoreModel
 from ..sampling import TRAINING, langevin, uniform_init
 from ..scene import Scene
-from ..threads import threads_for, torch_threads
+from ..threads import torch_threads
 from .config import TrainConfig
 
 __all__ = ["ABSENT", "infonce_loss", "energy_l2", "gradient_penalty", "training_loss", "heldout_loss"]
@@ -87,7 +87,7 @@ def heldout_loss(
     def energy(x: torch.Tensor) -> torch.Tensor:
         return model.energy(x, rep)
 
-    with torch_threads(threads_for(rep.mask.shape[0])):
+    with torch_threads(1):  # large batches: pieces side by side (EnergyNet.forward)
         neg, _ = langevin(energy, init, movable, rep.lo, rep.hi, replace(TRAINING, final_descent=0), gen)
         with torch.no_grad():
             loss = infonce_loss(

@@ -38,12 +38,12 @@ class SizeGroups:
             self.groups.append((order[a:b], c[order[b - 1]]))
 
     def bound(
-        self, model: ScoreModel, st: SceneTensors, k: int = 1
+        self, model: ScoreModel, st: SceneTensors, k: int = 1, weight_grads: bool = True
     ) -> Callable[[torch.Tensor], torch.Tensor]:
-        """``poses (S * k, N, 3) -> model.energy(poses, st)`` for ``k`` rows per scene, each group's rows and
-        cropped tensors made once (the chain calls it at every step)."""
+        """``poses (S * k, N, 3) -> model.energy(poses, st, weight_grads)`` for ``k`` rows per scene, each
+        group's rows and cropped tensors made once (the chain calls it at every step)."""
         if len(self.groups) == 1:
-            return lambda poses: model.energy(poses, st)
+            return lambda poses: model.energy(poses, st, weight_grads)
         parts = []
         for scenes, n in self.groups:
             r = torch.tensor([i * k + j for i in scenes for j in range(k)], device=st.poses.device)
@@ -53,7 +53,7 @@ class SizeGroups:
         inverse[order] = torch.arange(len(order), device=order.device)
 
         def energy(poses: torch.Tensor) -> torch.Tensor:
-            return torch.cat([model.energy(poses[r, :n], sub) for r, n, sub in parts])[inverse]
+            return torch.cat([model.energy(poses[r, :n], sub, weight_grads) for r, n, sub in parts])[inverse]
 
         return energy
 

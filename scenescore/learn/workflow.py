@@ -27,6 +27,7 @@ from .config import TrainConfig
 from .data import VALIDATION_FRACTION, check_training_data, split_validation
 from .logs import log_validation
 from .loop import train
+from .training_state import SAVE_EVERY
 
 __all__ = ["NothingLearned", "holdout", "train_model"]
 
@@ -84,6 +85,9 @@ def train_model(
     progress: bool = True,
     log: Log | None = print,
     source: str | os.PathLike | None = None,
+    state: str | os.PathLike | None = None,
+    resume: bool = False,
+    save_every: int = SAVE_EVERY,
 ) -> ScoreModel:
     """Train a model on ``scenes`` as ``scenescore train`` does, and return it evaluated and calibrated.
 
@@ -96,7 +100,8 @@ def train_model(
     held-out scenes split here, ``<out stem>.val.jsonl``; ``plot``: the learning curve and a few
     held-out placements. ``log``: where the summary lines go (None: nowhere); ``source``: where
     ``scenes`` were read from, named in the line that says how to evaluate the model again.
-    ``log_dir``, ``device``, ``progress``, ``encoder``: as for :func:`~scenescore.learn.loop.train`.
+    ``log_dir``, ``device``, ``progress``, ``encoder``, ``state``, ``resume``, ``save_every``: as for
+    :func:`~scenescore.learn.loop.train`; the training state is kept until the checkpoint is written.
     """
     cfg = config or TrainConfig()
     say: Log = log or (lambda line: None)
@@ -112,6 +117,10 @@ def train_model(
         validation=held,
         log_dir=log_dir,
         device=device,
+        state=state,
+        resume=resume,
+        save_every=save_every,
+        keep_state=True,  # a run killed before the checkpoint is written resumes with no more training
     )
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
@@ -134,6 +143,8 @@ def train_model(
     _calibrate(model, held, train_s, seed, say)
     record["tidy"] = info.tidy.to_dict() if info.tidy is not None else None
     _save(model, out_path, report, record, say)
+    if state is not None:
+        Path(state).unlink(missing_ok=True)
     return model
 
 
@@ -149,10 +160,12 @@ def _validate(
     say: Log,
 ) -> list[Any]:
     """Place the held-out scenes' objects back (beside nearest neighbour on ``train_s``): the figures
-    go in the model's info, the record and the TensorBoard log; the table is said. A few placements
-    are returned, for the plot."""
+    go in the model's info, the record and the TensorBoard log; the table is said, and what it finds
+    unlearned is warned of and kept as the model's caveats, which its placements then carry among their
+    flags. A few placements are returned, for the plot."""
     ev = evaluate(model, held, train_s, seed=seed, progress=progress)
     model.info.validation = record["validation"] = ev.to_dict()
+    model.info.caveats = ev.caveats()
     if log_dir is not None:
         log_validation(log_dir, ev.to_dict(), cfg.iterations - 1)
     say(f"\nleave-one-object-out on {len(held)} held-out scenes (seed {seed}):\n{ev.table()}")

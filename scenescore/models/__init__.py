@@ -1,8 +1,10 @@
-"""Energy models: the SceneScore network, batching, trained models, checkpoints and the CasADi export."""
+"""Energy models: the SceneScore network, batching, trained models, checkpoints, the models the package
+ships (:func:`pretrained`) and the CasADi export."""
 
 from .batching import SceneTensors, batch_scenes
+from .bundled import pretrained, pretrained_index, pretrained_names
 from .checkpoint import FORMAT_VERSION, CheckpointError
-from .info import ModelInfo, TidyCalibration
+from .info import Caveats, ModelInfo, TidyCalibration
 from .model import ScoreModel, load
 from .network import EnergyConfig, EnergyNet, edge_features
 
@@ -13,9 +15,13 @@ __all__ = [
     "CheckpointError",
     "FORMAT_VERSION",
     "ModelInfo",
+    "Caveats",
     "TidyCalibration",
     "ScoreModel",
     "SceneTensors",
     "batch_scenes",
     "load",
+    "pretrained",
+    "pretrained_names",
+    "pretrained_index",
 ]

@@ -5,11 +5,14 @@ at once while their tensors are in cache."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 from typing import Any
 
 import torch
 from torch import Tensor
 from torch.autograd.function import once_differentiable
+
+from .. import threads
 
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
@@ -85,15 +88,17 @@ class PoseGradInPieces(torch.autograd.Function):
     @staticmethod
     def forward(ctx: Any, net: EnergyNet, rows: int, *inputs: Tensor | None) -> Tensor:
         b = _first(inputs).shape[0]
-        pooled, grads = [], []
-        for a in range(0, b, rows):
+
+        def piece(a: int) -> tuple[Tensor, Tensor]:
             part = [None if t is None else t.detach() for t in _rows_of(inputs, b, a, a + rows)]
             with torch.enable_grad():
                 poses = _first(part).requires_grad_(True)
                 p = _pooled_of(net, [poses, *part[1:]])
                 (g,) = torch.autograd.grad(net.readout(p).sum(), poses)
-            pooled.append(p.detach())
-            grads.append(g)
+            return p.detach(), g
+
+        done = threads.in_parallel([partial(piece, a) for a in range(0, b, rows)])
+        pooled, grads = [p for p, _ in done], [g for _, g in done]
         ctx.save_for_backward(torch.cat(grads))
         with torch.no_grad():
             return net.readout(torch.cat(pooled))
@@ -119,7 +124,13 @@ def _pooled_of(net: EnergyNet, args: Sequence[Tensor | None]) -> Tensor:
 def pooled_in_chunks(net: EnergyNet, rows: int, args: Sequence[Tensor | None]) -> Tensor:
     """:func:`_pooled_of` of a batch's six inputs, ``rows`` pose sets at a time, concatenated."""
     b = _first(args).shape[0]
-    return torch.cat([_pooled_of(net, _rows_of(args, b, a, a + rows)) for a in range(0, b, rows)])
+
+    def piece(a: int) -> Tensor:
+        with torch.no_grad():
+            return _pooled_of(net, _rows_of(args, b, a, a + rows))
+
+    work = [partial(piece, a) for a in range(0, b, rows)]
+    return torch.cat(threads.in_parallel(work, _first(args).device.type == "cpu"))
 
 
 def _rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:

@@ -13,7 +13,7 @@ from typing import Any
 
 from .trust import TrustReference
 
-__all__ = ["ModelInfo", "TidyCalibration"]
+__all__ = ["ModelInfo", "TidyCalibration", "Caveats"]
 
 
 @dataclass
@@ -36,6 +36,35 @@ class TidyCalibration:
 
 
 @dataclass
+class Caveats:
+    """What the held-out evaluation found the model has not learned (``EvalReport.caveats()``): every
+    placement it concerns carries the reason among its flags (:func:`~scenescore.models.trust.assess`)."""
+
+    model: list[str] = field(default_factory=list)  # reasons every placement carries (loss not below chance)
+    categories: dict[str, str] = field(default_factory=dict)  # category -> the reason its placements carry
+
+    def reasons(self, category: str) -> list[str]:
+        """The reasons a placed object of ``category`` carries."""
+        own = self.categories.get(category)
+        return self.model + ([own] if own is not None else [])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": list(self.model), "categories": dict(self.categories)}
+
+    @classmethod
+    def from_dict(cls, d: Any) -> Caveats:
+        """Read stored caveats; anything but lists and mappings of strings raises ``ValueError``."""
+        if not isinstance(d, dict):
+            raise ValueError(f"expected a mapping, got {type(d).__name__}")
+        model, cats = d.get("model", []), d.get("categories", {})
+        if not (isinstance(model, list) and all(isinstance(r, str) for r in model)):
+            raise ValueError(f"model: expected a list of strings, got {model!r:.80}")
+        if not (isinstance(cats, dict) and all(isinstance(r, str) for r in cats.values())):
+            raise ValueError(f"categories: expected a mapping of category to string, got {cats!r:.80}")
+        return cls(list(model), dict(cats))
+
+
+@dataclass
 class ModelInfo:
     """A trained model's record, in the order a checkpoint stores it."""
 
@@ -49,6 +78,7 @@ class ModelInfo:
     trust: TrustReference | None = None  # what placements are judged against
     validation: dict[str, Any] | None = None  # the held-out evaluation (``EvalReport.to_dict()``)
     tidy: TidyCalibration | None = None
+    caveats: Caveats | None = None  # what the held-out evaluation found unlearned; None: nothing, or not run
     extra: dict[str, Any] = field(default_factory=dict)  # keys of the file this version does not know
 
     def to_dict(self) -> dict[str, Any]:
@@ -58,14 +88,15 @@ class ModelInfo:
             value = getattr(self, f.name)
             if f.name == "extra" or value is None:
                 continue
-            out[f.name] = value.to_dict() if isinstance(value, (TrustReference, TidyCalibration)) else value
+            stored = isinstance(value, (TrustReference, TidyCalibration, Caveats))
+            out[f.name] = value.to_dict() if stored else value
         return {**out, **self.extra}
 
     def training(self) -> dict[str, Any]:
         """The training run's own figures: :meth:`to_dict` without the trust reference, the evaluation
         and the calibration (the ``training`` part of ``train_report.json``)."""
         out = self.to_dict()
-        for key in ("trust", "validation", "tidy"):
+        for key in ("trust", "validation", "tidy", "caveats"):
             out.pop(key, None)
         return out
 
@@ -73,8 +104,9 @@ class ModelInfo:
     def from_dict(cls, d: dict[str, Any]) -> ModelInfo:
         """Read a checkpoint's ``info``; a damaged trust reference raises ``ValueError`` naming the field
         (``info.trust: ...``), a ``tidy`` entry that is not a mapping is dropped (the planner then uses
-        its default cost of a move)."""
-        known = {f.name for f in fields(cls)} - {"extra", "trust", "tidy"}
+        its default cost of a move), damaged caveats raise ``ValueError`` (``info.caveats: ...``)."""
+        parsed = ("extra", "trust", "tidy", "caveats")
+        known = {f.name for f in fields(cls)} - set(parsed)
         kw: dict[str, Any] = {k: v for k, v in d.items() if k in known}
         if "trust" in d:
             try:
@@ -83,5 +115,10 @@ class ModelInfo:
                 raise ValueError(f"info.trust: {e}") from None
         if isinstance(d.get("tidy"), dict):
             kw["tidy"] = TidyCalibration.from_dict(d["tidy"])
-        extra = {k: v for k, v in d.items() if k not in known and k not in ("trust", "tidy")}
+        if d.get("caveats") is not None:
+            try:
+                kw["caveats"] = Caveats.from_dict(d["caveats"])
+            except ValueError as e:
+                raise ValueError(f"info.caveats: {e}") from None
+        extra = {k: v for k, v in d.items() if k not in known and k not in parsed}
         return cls(**kw, extra=extra)

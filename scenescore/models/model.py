@@ -64,13 +64,14 @@ class ScoreModel(nn.Module):
         """Where the weights are (``cpu`` unless moved)."""
         return next(self.net.parameters()).device
 
-    def energy(self, poses: Tensor, st: SceneTensors) -> Tensor:
-        """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``."""
+    def energy(self, poses: Tensor, st: SceneTensors, weight_grads: bool = True) -> Tensor:
+        """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``;
+        ``weight_grads=False``: a gradient for the poses alone (sampling; see :meth:`EnergyNet.forward`)."""
         b = poses.shape[0]
         feats, sizes, mask, rnd = st.feats, st.sizes, st.mask, st.round
         if feats.shape[0] == 1 and b != 1:
             feats, sizes, mask, rnd = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask, rnd))
-        return self.net(poses, feats, sizes, mask, round=rnd)
+        return self.net(poses, feats, sizes, mask, round=rnd, weight_grads=weight_grads)
 
     def energy_fn(self, scene: Scene) -> Callable[[Tensor], Tensor]:
         """``poses (B, N, 3) -> (B,)`` conditioned on one scene's objects (node embeddings computed once).

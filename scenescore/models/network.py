@@ -18,6 +18,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from .. import threads
 from ..errors import ConfigError, check_number
 from ..memory import check as check_memory
 from ..memory import chunk_rows, return_freed_memory
@@ -150,6 +151,11 @@ def parameter_count(cfg: EnergyConfig) -> int:
 # 1.4 to 1.8 times the pose sets per second of the chunked path, 5000 pose sets of 4 to 12 objects and
 # 1000 of 20 and 28, one thread)
 CACHE_EDGES = 49152
+# a batch of two pieces of this many edges or more (pose sets x N x the nodes each reads) is cut into as
+# many pieces of at least this many as the machine has usable cores, which run side by side on the cores
+# other processes leave free (:func:`scenescore.threads.in_parallel`), each on one torch thread: the
+# numbers never depend on the load; smaller pieces would spend more time in Python than in torch
+PIECE_EDGES = 4096
 
 # floats per edge (i, j) of one pose set that evaluating the energy holds at its peak, measured (CPU,
 # float32) and rounded up: the edge features, then per message layer its (N, N, inner) tensors; with a
@@ -297,6 +303,9 @@ class EnergyNet(nn.Module):
         rows = self.chunk_rows(n, grad, poses.element_size())
         args = (poses, feats, sizes, mask, nodes, round)
         piece = min(rows, max(1, CACHE_EDGES // (n * self.reads(n))))
+        edges = b * n * self.reads(n)
+        if edges >= 2 * PIECE_EDGES:  # enough work to share: a piece for each core, none too small
+            piece = min(piece, -(-b // min(threads.usable_cores(), edges // PIECE_EDGES)))
         if poses.device.type == "cpu" and b > piece:
             if not grad:
                 return self.readout(pooled_in_chunks(self, piece, args))

@@ -14,7 +14,9 @@ with the reason, when
 - the object is farther from every other object than any object of its category in the data (``far``),
 - it is pinned at a bound that no object of its category comes near in the data (within
   :data:`NEAR_BOUND` length scales: ``bound``),
-- its category's features are far from every feature seen in training (``novel``).
+- its category's features are far from every feature seen in training (``novel``),
+- the model's held-out evaluation found it unlearned: a held-out loss not below chance, or the object's
+  category placed no better than nearest neighbour (``validation``; the model's ``info.caveats``).
 
 It also keeps where the training data puts each category relative to each other one
 (:func:`relations`), from which placement draws candidate poses beside the scene's known objects
@@ -34,6 +36,7 @@ import torch
 from ..exact import collides, footprint_extents
 from ..geometry import relative_poses
 from ..scene import Scene, SceneObject, wrap_angle
+from ..units import length_unit
 
 __all__ = [
     "TrustReference",
@@ -50,6 +53,7 @@ __all__ = [
     "BOUND_TOL",
     "relations",
     "RELATIONS_PER_PAIR",
+    "CAVEAT",
 ]
 
 BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
@@ -63,7 +67,13 @@ MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
 RELATIONS_PER_PAIR = 32  # relative poses kept per (category, anchor category), evenly subsampled
 MAX_RELATIONS = 4096  # relative poses kept in all (fewer per pair when the pairs are many)
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
+#: in a scene of more than ALL_PAIRS objects an object's relations are kept to its NEAR_RELATIONS nearest
+#: objects only: in a room, a chair's pose in the frame of a table across the room says nothing of where
+#: chairs go, and among every pair's relations the ones to its own table were 2 of 32
+ALL_PAIRS = 32
+NEAR_RELATIONS = 8
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
+CAVEAT = "validation: "  # how a flag from the model's held-out evaluation begins (not out of distribution)
 
 
 @dataclass
@@ -97,12 +107,13 @@ class TrustReference:
             return category in self.touches_bounds
         return self.bound_gaps.get(category, math.inf) <= NEAR_BOUND
 
-    def bound_reason(self, category: str) -> str:
-        """Why a pinned object of ``category`` is outside the data, for :func:`assess`'s ``bound`` flag."""
+    def bound_reason(self, category: str, unit: str = "m") -> str:
+        """Why a pinned object of ``category`` is outside the data, for :func:`assess`'s ``bound`` flag
+        (``unit``: how its lengths are said, :func:`length_unit`)."""
         gap = None if self.bound_gaps is None else self.bound_gaps.get(category)
         if gap is None:
             return f"which no {category} in the data touches"
-        return f"where no {category} in the data comes within {gap * self.length_scale:.3g} m of a bound"
+        return f"where no {category} in the data comes within {gap * self.length_scale:.3g} {unit} of a bound"
 
     def anchored(self, category: str, anchors: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         """Where the data would put an object of ``category`` beside objects of the categories
@@ -310,7 +321,8 @@ def _evenly(rows: list[Any], keep: int) -> list[Any]:
 def relations(scenes: Sequence[Scene], length: float) -> dict[str, dict[str, list[list[float]]]]:
     """Each category's poses relative to each other category's in ``scenes``: ``{category: {anchor
     category: [[x, y, heading], ...]}}``, the pose of every object in the frame of every other object
-    of the scene (x, y divided by ``length``, the heading wrapped to [-pi, pi)), at most
+    of the scene (x, y divided by ``length``, the heading wrapped to [-pi, pi)); in a scene of more than
+    :data:`ALL_PAIRS` objects, in the frames of its :data:`NEAR_RELATIONS` nearest only. At most
     :data:`RELATIONS_PER_PAIR` per pair evenly subsampled, fewer when the pairs are many (at most
     :data:`MAX_RELATIONS` in all)."""
     found: dict[tuple[str, str], list[list[float]]] = {}
@@ -320,9 +332,14 @@ def relations(scenes: Sequence[Scene], length: float) -> dict[str, dict[str, lis
         rel[..., :2] /= length
         rel[..., 2] = wrap_angle(rel[..., 2])
         rows = rel.tolist()
+        pairs = torch.ones(len(s), len(s), dtype=torch.bool)  # (anchor, object)
+        if len(s) > ALL_PAIRS:  # each object's nearest, by centre distance (itself first)
+            near = torch.cdist(p[:, :2], p[:, :2]).argsort(dim=0)[1 : NEAR_RELATIONS + 1]
+            pairs = torch.zeros_like(pairs).scatter_(0, near, True)
+        kept = pairs.tolist()
         for a, anchor in enumerate(s.objects):
             for o, obj in enumerate(s.objects):
-                if a != o:
+                if a != o and kept[a][o]:
                     found.setdefault((obj.category, anchor.category), []).append(rows[a][o])
     keep = max(1, min(RELATIONS_PER_PAIR, MAX_RELATIONS // max(1, len(found))))
     out: dict[str, dict[str, list[list[float]]]] = {}
@@ -414,6 +431,8 @@ def assess(
         with torch.no_grad():
             feats = model.tensors([scene]).feats[0]
     known = np.asarray(ref.features)
+    caveats = getattr(getattr(model, "info", None), "caveats", None)  # the model's ``info.caveats``
+    unit = length_unit(scene)
     out = {}
     for name in names:
         i = scene.index(name)
@@ -440,16 +459,19 @@ def assess(
         if math.isfinite(nn[i]) and far > 0 and nn[i] > FAR_FACTOR * far:
             d, lim = nn[i] * ref.length_scale, far * ref.length_scale
             flags.append(
-                f"far: {d:.3g} m from its nearest neighbour; no {o.category} in the data is more than {lim:.3g} m away"
+                f"far: {d:.3g} {unit} from its nearest neighbour; no {o.category} in the data is more than "
+                f"{lim:.3g} {unit} away"
             )
         side = touching_bound(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
         if side and not ref.may_touch_bounds(o.category):
-            flags.append(f"bound: pinned at the bound {side}, {ref.bound_reason(o.category)}")
+            flags.append(f"bound: pinned at the bound {side}, {ref.bound_reason(o.category, unit)}")
         if known.size:
             dist = float(np.linalg.norm(known - feats[i].double().cpu().numpy(), axis=1).min())
             if dist > ref.feature_radius:
                 flags.append(
                     f"novel: its features are {dist:.2f} from any object seen in training (limit {ref.feature_radius:.2f})"
                 )
+        if caveats is not None:
+            flags += [CAVEAT + reason for reason in caveats.reasons(o.category)]
         out[name] = Assessment(confidence, flags)
     return out

@@ -9,6 +9,8 @@ from ..scene import Scene, SceneError
 from .desk import DeskScenario
 from .dining import DiningScenario
 from .ordering import OrderingScenario
+from .relations import SCENARIOS as RELATION_SCENARIOS
+from .relations import RelationScenario
 from .tv import TVScenario
 from .zoo import SCENARIOS as ZOO_SCENARIOS
 from .zoo import (
@@ -50,11 +52,16 @@ __all__ = [
     "HallScenario",
     "ClassroomScenario",
     "CafeScenario",
+    "RelationScenario",
 ]
 
 
 class Scenario(Protocol):
-    """A seeded generator of scenes (``generate``), with the experiment's split and an oracle."""
+    """A seeded generator of scenes (``generate``), with the experiment's split and an oracle.
+
+    The bundled scenarios also have ``iter_scenes(n, seed)``, ``generate``'s scenes one at a time, which
+    ``scenescore generate`` writes as they come; a scenario without it is generated whole, within the
+    memory budget."""
 
     name: str
 
@@ -71,6 +78,7 @@ _REGISTRY: dict[str, Callable[..., Any]] = {
     "tv": TVScenario,
     "desk": DeskScenario,
     **ZOO_SCENARIOS,
+    **RELATION_SCENARIOS,  # relation-left_of, ...: examples of one spatial relation each
 }
 
 

@@ -9,6 +9,7 @@ class never trained on, long and thin like the pen) can stand in for the pen at 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,8 +70,11 @@ class DeskScenario:
         return Scene(objs, self.bounds, meta={"scenario": self.name, "pen_distance": float(pen_distance)})
 
     def generate(self, n: int, seed: int, pen: str = "pen") -> list[Scene]:
+        return list(self.iter_scenes(n, seed, pen))
+
+    def iter_scenes(self, n: int, seed: int, pen: str = "pen") -> Iterator[Scene]:
+        """:meth:`generate`'s scenes one at a time, from the same random stream (none held)."""
         rng = np.random.default_rng(seed)
-        out = []
         for _ in range(n):
             d = rng.uniform(self.pen_min, self.pen_max)
             reach = max(d, self.mug_distance(d)) + 0.08
@@ -81,8 +85,7 @@ class DeskScenario:
             noisy = s.poses()
             noisy[1:, :2] += rng.normal(0, self.pos_noise, (2, 2))
             noisy[2, 2] = rng.uniform(-math.pi, math.pi)  # a mug (disk) has no visible heading
-            out.append(s.with_poses(noisy))
-        return out
+            yield s.with_poses(noisy)
 
     def split(self, seed: int) -> tuple[list[Scene], list[Scene]]:
         return self.generate(self.n_train, seed * 2 + 71), self.generate(self.n_test, seed * 2 + 72)

@@ -9,6 +9,7 @@ Object names end in the setting's index: ``plate_0, fork_0, knife_0, bowl_0, pla
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,8 +52,13 @@ class DiningScenario:
 
     def generate(self, n: int, seed: int) -> list[Scene]:
         """``n`` scenes from the process, reproducible from ``seed``."""
+        return list(self.iter_scenes(n, seed))
+
+    def iter_scenes(self, n: int, seed: int) -> Iterator[Scene]:
+        """:meth:`generate`'s scenes one at a time, from the same random stream (none held)."""
         rng = np.random.default_rng(seed)
-        return [self._one(rng) for _ in range(n)]
+        for _ in range(n):
+            yield self._one(rng)
 
     def split(self, seed: int) -> tuple[list[Scene], list[Scene]]:
         """The experiment's training and test scenes (disjoint random streams)."""

@@ -15,7 +15,7 @@ Lengths come from two disjoint grids: training scenes draw from ``TRAIN_LENGTHS`
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -74,8 +74,13 @@ class OrderingScenario:
 
     def generate(self, n: int, seed: int, test: bool = False) -> list[Scene]:
         """``n`` rows, reproducible from ``seed``; ``test`` draws the test lengths (and spoons)."""
+        return list(self.iter_scenes(n, seed, test))
+
+    def iter_scenes(self, n: int, seed: int, test: bool = False) -> Iterator[Scene]:
+        """:meth:`generate`'s scenes one at a time, from the same random stream (none held)."""
         rng = np.random.default_rng(seed)
-        return [self._one(rng, test) for _ in range(n)]
+        for _ in range(n):
+            yield self._one(rng, test)
 
     def split(self, seed: int) -> tuple[list[Scene], list[Scene]]:
         return (

@@ -10,7 +10,7 @@ whether an arrangement is aligned and symmetric within the stated thresholds, fr
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -56,8 +56,13 @@ class TVScenario:
         return SceneObject(name, cat, size, pose, color=color, fixed=fixed)
 
     def generate(self, n: int, seed: int) -> list[Scene]:
+        return list(self.iter_scenes(n, seed))
+
+    def iter_scenes(self, n: int, seed: int) -> Iterator[Scene]:
+        """:meth:`generate`'s scenes one at a time, from the same random stream (none held)."""
         rng = np.random.default_rng(seed)
-        return [self._one(rng) for _ in range(n)]
+        for _ in range(n):
+            yield self._one(rng)
 
     def split(self, seed: int) -> tuple[list[Scene], list[Scene]]:
         return self.generate(self.n_train, seed * 2 + 51), self.generate(self.n_test, seed * 2 + 52)

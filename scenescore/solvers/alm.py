@@ -73,7 +73,9 @@ class ALMOptions:
     step: float = 0.01  # a gradient step's largest coordinate move (metres; radians for an angle)
     step_max: float = 0.1  # the largest move of any coordinate in one step
     polish: bool = True  # keep minimising the objective once feasible; False: a particle stops when feasible
-    threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
+    # torch threads; None: one, with large batches of the learned energy in pieces side by side on the
+    # free cores (scenescore.threads.in_parallel), whose answers never depend on the load
+    threads: int | None = None
 
     def __post_init__(self) -> None:
         check_number("alm", "iterations", self.iterations, 0, MAX_ITERATIONS, integer=True)
@@ -358,7 +360,7 @@ class ALMSolver(StageSolver):
     takes_batch = True
 
     def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """``threads_for`` the particles: the budget (on free cores) for 256 or more, one for fewer."""
+        """``threads_for`` the particles: the free cores within the budget for 256 or more, one for fewer."""
         return threads_for(1 if init is None else problem.full(init).shape[0])
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:

@@ -27,7 +27,9 @@ class Solver(Protocol):
 
 class StageSolver:
     """Base of the built-in solvers: options from keyword arguments (``options_cls``, which has a
-    ``threads`` field: ``None`` lets the solver choose), and ``solve`` run on that many torch threads."""
+    ``threads`` field), and ``solve`` run on that many torch threads; with ``None`` on one, the learned
+    energy's large batches in pieces side by side (:func:`~scenescore.threads.in_parallel`), and the
+    result's ``threads`` is :meth:`default_threads`."""
 
     name: ClassVar[str] = "stage"
     options_cls: ClassVar[type]
@@ -39,14 +41,15 @@ class StageSolver:
 
     def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
         """``solve(problem, init=None, seed=0) -> Result``."""
-        n = self.options.threads if self.options.threads is not None else self.default_threads(problem, init)
-        with torch_threads(n) as used:
+        pinned = self.options.threads
+        with torch_threads(1 if pinned is None else pinned) as used:
             r = self._solve(problem, init, seed)
-        r.threads = used
+        r.threads = used if pinned is not None else self.default_threads(problem, init)
         return r
 
     def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """Threads when the options leave it open: one (tiny tensors); batched stages override."""
+        """The threads a solve's work runs on at once when the options leave it open: one (tiny
+        tensors); batched stages override."""
         return 1
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:  # pragma: no cover

@@ -65,7 +65,9 @@ class LangevinOptions:
     # (the learned energy: its data's poses relative to the scene's known objects; Problem.initial)
     proposals: float = 0.0
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
-    threads: int | None = None  # torch threads; None: threads_for(particles) (scenescore.threads)
+    # torch threads; None: one, with large batches of the learned energy in pieces side by side on the
+    # free cores (scenescore.threads.in_parallel), whose answers never depend on the load
+    threads: int | None = None
     chain: LangevinConfig = SAMPLING
     # the answer: among the feasible particles (else all), those that no guiding term doubts first
     # (Problem.doubted; the learned energy: no object at a bound its category never comes near, or
@@ -118,8 +120,8 @@ class LangevinSolver(StageSolver):
         self.options = options if options is not None else LangevinOptions.from_flat(**flat)
 
     def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """``threads_for`` the population: the budget (on free cores) for large ones, whose tensors are
-        big enough to pay for the pool, one for small ones."""
+        """``threads_for`` the population: the free cores within the budget for large ones (their energy
+        in pieces side by side), one for small ones."""
         return threads_for(self.options.particles)
 
     def solve_many(
@@ -134,13 +136,11 @@ class LangevinSolver(StageSolver):
             raise ProblemError(
                 f"langevin: init: expected {len(problems)} starts, one per problem, got {len(init)}"
             )
-        # the batch is every problem's particles at once
-        rows = self.options.particles * len(problems)
-        n = self.options.threads if self.options.threads is not None else threads_for(rows)
-        with torch_threads(n) as used:
+        pinned = self.options.threads
+        with torch_threads(1 if pinned is None else pinned) as used:
             out = self._run(list(problems), None if init is None else list(init), seed)
         for r in out:
-            r.threads = used
+            r.threads = used if pinned is not None else threads_for(self.options.particles * len(problems))
         return out
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:

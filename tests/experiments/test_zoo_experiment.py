@@ -105,3 +105,24 @@ def test_zoo_room_run_scores_each_chair_by_assignment():
     assert t == max(r["t_cm"] for r in recs) and placed[case.name].pose is not None
     with pytest.raises(SceneError, match="zoo-nope"):  # the rooms are named, like any scenario
         zoo.run(seeds=1, scenarios=["zoo-classroom", "zoo-nope"], log=lambda s: None)
+
+
+def test_zoo_small_data_variant_trains_on_fewer_scenes_and_places_the_same_cases(monkeypatch):
+    """``train_scenes`` (``experiment zoo --train-scenes 12``): the first N training scenes, the same
+    test cases; a count outside 2..48 is refused."""
+    import scenescore.experiments.zoo as zoo_module
+
+    seen: list[int] = []
+    real = zoo_module.train
+
+    def counting(scenes, *args, **kwargs):
+        seen.append(len(scenes))
+        return real(scenes, *args, **kwargs)
+
+    monkeypatch.setattr(zoo_module, "train", counting)
+    kw = dict(seeds=1, scenarios=["zoo-hall"], progress=False, log=lambda s: None, config=TINY)
+    full, small = zoo.run(**kw), zoo.run(**kw, train_scenes=12)
+    assert seen == [48, 12]
+    assert [c["truth"] for c in full.per_case["zoo-hall"]] == [c["truth"] for c in small.per_case["zoo-hall"]]
+    with pytest.raises(SceneError, match="train_scenes"):
+        zoo.run(**kw, train_scenes=1)

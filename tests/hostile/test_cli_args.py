@@ -299,25 +299,3 @@ def test_scene_with_unicode_names_places(w, capsys):
     code, out, err = run_cli(capsys, "place", w / "m.ckpt", w / "u.json", "--particles", "4", "--quiet")
     assert code == 0, err
     assert "tasse \u2615" in out
-
-
-def test_generate_over_the_memory_budget_is_refused(w, capsys):
-    line = cli_error(
-        capsys,
-        *("generate", "dining", "--n", "1000", "--out", w / "g.jsonl", "--memory-gb", "0.001"),
-        names=("generate dining: 1000 scenes", "memory budget of 0.001 GB (--memory-gb)", "lower --n"),
-    )
-    assert "bytes of JSON each" in line
-    assert not (w / "g.jsonl").exists()
-
-
-@pytest.mark.parametrize("n", [5, 40])
-def test_generate_writes_the_scenarios_scenes(w, capsys, n):
-    """Small and sampled sizes alike: the file is the scenario's one call, written as JSONL."""
-    from scenescore.scenarios import get
-    from scenescore.scene import write_jsonl
-
-    code, out, _ = run_cli(capsys, "generate", "dining", "--n", n, "--seed", 3, "--out", w / "g.jsonl")
-    assert code == 0 and out == f"wrote {n} dining scenes to {w / 'g.jsonl'}\n"
-    write_jsonl(w / "ref.jsonl", get("dining").generate(n, 3))
-    assert (w / "g.jsonl").read_bytes() == (w / "ref.jsonl").read_bytes()

@@ -156,6 +156,17 @@ OBJECTS = [
         ("'plate'", "shape.polygon[1]", "[10, 0]", "lies 10 m", "0.2 x 0.2 m", "own frame"),
     ),
     (
+        # its 10 m size allows the vertices, but its pose stays in the 1.2 m bounds: the outline cannot
+        "polygon 10 m from an object to place, in 1.2 m bounds",
+        with_object(2, size=[10.0, 10.0], shape={"polygon": [[10.0, 0], [10.1, 0], [10.0, 0.1]]}),
+        ("'cup'", "1.2 x 1.2 m", "'shape.polygon' reaches 10.1 m from its pose"),
+    ),
+    (
+        "polygon off its origin that fits with it is fine",
+        with_object(2, size=[0.5, 0.5], shape={"polygon": [[0.3, 0], [0.4, 0], [0.3, 0.1]]}),
+        None,
+    ),
+    (
         "polygon uncentred within its size is fine",
         with_object(0, shape={"polygon": [[0, 0], [0.2, 0], [0, 0.2]]}),
         None,

@@ -170,7 +170,7 @@ def test_a_category_near_a_bound_in_the_data_may_be_pinned_there(dining):
     from scenescore.models.trust import NEAR_BOUND, outside_data
 
     model, _, te = dining
-    s = te[0]
+    s = replace(te[0], meta={**te[0].meta, "unit": "m"})  # the flag says lengths in the unit named
     i = s.index("plate_0")
     (x0, _), _ = s.bounds
     pinned = s.poses()
@@ -186,6 +186,9 @@ def test_a_category_near_a_bound_in_the_data_may_be_pinned_there(dining):
     ]
     want = f"comes within {1.1 * NEAR_BOUND * away.length_scale:.3g} m of a bound"
     assert len(flag) == 1 and want in flag[0] and "plate" in flag[0], flag
+    unnamed = replace(s, meta={k: v for k, v in s.meta.items() if k != "unit"}).with_poses(pinned)
+    flag = [f for f in assess(away, model, unnamed, ["plate_0"])["plate_0"].flags if f.startswith("bound:")]
+    assert "data units of a bound" in flag[0], flag
     assert not any(
         f.startswith("bound:")
         for f in assess(near, model, s.with_poses(pinned), ["plate_0"])["plate_0"].flags
@@ -254,6 +257,22 @@ def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
     assert got[:2] == pytest.approx(want[:2] / 0.25)
     assert got[2] == pytest.approx(float(wrap_angle(want[2])))
     assert set(rel) == {"a", "b"} and list(rel["a"]) == ["b"]
+
+
+def test_relations_in_a_room_are_to_each_objects_nearest_only():
+    """A scene of more than ALL_PAIRS objects keeps each object's pose in the frames of its
+    NEAR_RELATIONS nearest objects only; a smaller scene keeps every pair."""
+    from scenescore.models.trust import ALL_PAIRS, NEAR_RELATIONS, relations
+
+    def row(n: int, gap: float) -> ss.Scene:  # n objects in a line, ``gap`` apart
+        objs = [ss.SceneObject(f"o_{i}", "o", (0.1, 0.1), (gap * i, 0.0, 0.0)) for i in range(n)]
+        return ss.Scene(objs, ((-1.0, -1.0), (gap * n + 1.0, 1.0)))
+
+    room = relations([row(ALL_PAIRS + 8, 0.5)], length=0.5)["o"]["o"]
+    reach = np.abs(np.asarray(room)[:, 0])  # distances in length scales: whole numbers of gaps
+    assert reach.max() <= NEAR_RELATIONS  # at most the 8th nearest's distance (one side, then both)
+    table = relations([row(20, 0.5)], length=0.5)["o"]["o"]
+    assert np.abs(np.asarray(table)[:, 0]).max() >= 10  # every pair, subsampled: far ones too
 
 
 def test_relations_are_subsampled_evenly_to_the_cap():

@@ -8,7 +8,7 @@ the costs' exact checks also use.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any, ClassVar, cast
 
 import numpy as np
@@ -242,8 +242,13 @@ class ZooScenario:
 
     def generate(self, n: int, seed: int) -> list[Scene]:
         """``n`` scenes from the process, reproducible from ``seed``."""
+        return list(self.iter_scenes(n, seed))
+
+    def iter_scenes(self, n: int, seed: int) -> Iterator[Scene]:
+        """:meth:`generate`'s scenes one at a time, from the same random stream (none held)."""
         rng = np.random.default_rng(seed)
-        return [self._draw_scene(rng) for _ in range(n)]
+        for _ in range(n):
+            yield self._draw_scene(rng)
 
     def split(self, seed: int) -> tuple[list[Scene], list[Scene]]:
         """The experiment's training and test scenes (disjoint random streams)."""
