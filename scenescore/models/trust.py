@@ -69,7 +69,7 @@ MAX_RELATIONS = 4096  # relative poses kept in all (fewer per pair when the pair
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
 #: in a scene of more than ALL_PAIRS objects an object's relations are kept to its NEAR_RELATIONS nearest
 #: objects only: in a room, a chair's pose in the frame of a table across the room says nothing of where
-#: chairs go, and among every pair's relations the ones to its own table were 2 of 32
+#: chairs go, and among every pair's relations kept, few were to the chair's own table
 ALL_PAIRS = 32
 NEAR_RELATIONS = 8
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
