@@ -58,8 +58,7 @@ PLACE = LangevinOptions(particles=64, candidates=2048, proposals=0.5, chain=PLAC
 #: on a 0.3 m board (3600 square length scales) need about 8000, where 2048 left the right slot unfound
 #: for 5 of zoo-pcb's 16 test scenes (``benchmarks/zoo_configs.py``'s "misses: search")
 CANDIDATE_DENSITY = 2.0
-MAX_COVERING = 32_768
-LOOKAHEAD = True  # the most candidates that covering the bounds asks for
+MAX_COVERING = 32_768  # the most candidates that covering the bounds asks for
 #: the weight of non-overlap in placement: energy per length scale of penetration (free of units)
 OVERLAP_WEIGHT = 10.0
 
@@ -131,7 +130,7 @@ def in_turn(
     gen = generator(seed, model.device)
     beam: Tensor | None = None  # (particles, k, 3): the first k unknown objects' poses in each particle
     for k in range(len(names)):
-        ahead = k + 1 < len(names) and LOOKAHEAD
+        ahead = k + 1 < len(names)
         later = set(names[k + 2 :] if ahead else names[k + 1 :])
         sub = replace(scene, objects=[o for o in scene.objects if o.name not in later])
         problem = placement_problem(model, sub, energy_only)

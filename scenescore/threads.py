@@ -136,7 +136,7 @@ _pool: ThreadPoolExecutor | None = None
 _pool_size = 0
 
 
-def _workers(n: int) -> ThreadPoolExecutor:
+def _pool_of(n: int) -> ThreadPoolExecutor:
     """The process's pool of at least ``n`` worker threads, each on one torch thread (made on first use)."""
     global _pool, _pool_size
     if _pool is None or _pool_size < n:
@@ -158,7 +158,7 @@ def in_parallel(work: Sequence[Callable[[], T]], parallel: bool = True) -> list[
     if n <= 1:
         return [w() for w in work]
     with torch_threads(1):
-        pool = _workers(n)
+        pool = _pool_of(n)
         lanes = [pool.submit(_lane, work[k::n]) for k in range(1, n)]
         out: list[T | None] = [None] * len(work)
         out[0::n] = _lane(work[0::n])

@@ -302,8 +302,9 @@ class EnergyNet(nn.Module):
         grad = torch.is_grad_enabled()
         rows = self.chunk_rows(n, grad, poses.element_size())
         args = (poses, feats, sizes, mask, nodes, round)
-        piece = min(rows, max(1, CACHE_EDGES // (n * self.reads(n))))
-        edges = b * n * self.reads(n)
+        per_row = n * self.reads(n)  # edges of one pose set
+        piece = min(rows, max(1, CACHE_EDGES // per_row))
+        edges = b * per_row
         if edges >= 2 * PIECE_EDGES:  # enough work to share: a piece for each core, none too small
             piece = min(piece, -(-b // min(threads.usable_cores(), edges // PIECE_EDGES)))
         if poses.device.type == "cpu" and b > piece:
