@@ -51,6 +51,27 @@ class MissingCase:
     truth: tuple[float, float, float]
     others: tuple[tuple[str, str, tuple[float, float, float]], ...] = ()
 
+    def to_dict(self) -> dict[str, Any]:
+        """The case as JSON (a sweep's record keeps it): the scene, the removed objects, their truths."""
+        return {
+            "scene": self.scene.to_dict(),
+            "name": self.name,
+            "category": self.category,
+            "truth": [float(v) for v in self.truth],
+            "others": [[n, c, [float(v) for v in t]] for n, c, t in self.others],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> MissingCase:
+        """The case :meth:`to_dict` wrote (its scene read and checked as a scene file is)."""
+
+        def pose(v: Any) -> tuple[float, float, float]:
+            x, y, t = (float(a) for a in v)
+            return x, y, t
+
+        others = tuple((str(n), str(c), pose(t)) for n, c, t in d["others"])
+        return cls(Scene.from_dict(d["scene"]), str(d["name"]), str(d["category"]), pose(d["truth"]), others)
+
     @property
     def names(self) -> list[str]:
         """Every removed object's name, ``name`` first."""

@@ -155,31 +155,39 @@ class _Context:
                 f"{self.where(self.at)}: an 'energy' cost needs a 'model' (a checkpoint path) at the top level"
             )
         if self._model is None:
-            mp = Path(self.spec.model)
-            mp = mp if mp.is_absolute() else self.root / mp
-            if not mp.exists():
-                raise ProblemError(
-                    f"{self.where(('model',))}: model checkpoint {str(mp)!r} does not exist "
-                    "(train one with `scenescore train DATA.jsonl --out MODEL.ckpt`)"
-                )
-            from .models import load
-
-            self._model = load(mp, device=self.device)
+            self._model = self._load(self.spec.model, ("model",))
         return self._model
 
     def checkpoint(self, path: str, at: KeyPath) -> Any:
         mp = Path(path) if Path(path).is_absolute() else self.root / path
-        key = mp.resolve()
+        key: Any = path if _shipped_name(path, mp) else mp.resolve()
         if key not in self._checkpoints:
-            if not mp.exists():
-                raise ProblemError(
-                    f"{self.where((*self.at, *at))}: model checkpoint {str(mp)!r} does not exist "
-                    "(train one with `scenescore train DATA.jsonl --out MODEL.ckpt`)"
-                )
-            from .models import load
-
-            self._checkpoints[key] = load(mp, device=self.device)
+            self._checkpoints[key] = self._load(path, (*self.at, *at))
         return self._checkpoints[key]
+
+    def _load(self, path: str, at: KeyPath) -> Any:
+        """The model at ``path`` (relative to the problem file), or, for a bare name (no folder, no
+        extension) that is no file there, the package's pretrained model of that name (``dining``,
+        ``relation-left_of``), as the command line reads a model argument."""
+        from .models import CheckpointError, load, pretrained
+
+        mp = Path(path) if Path(path).is_absolute() else self.root / path
+        if _shipped_name(path, mp):
+            try:
+                return pretrained(path, device=self.device)
+            except CheckpointError as e:
+                raise ProblemError(f"{self.where(at)}: {e}") from None
+        if not mp.exists():
+            raise ProblemError(
+                f"{self.where(at)}: model checkpoint {str(mp)!r} does not exist "
+                "(train one with `scenescore train DATA.jsonl --out MODEL.ckpt`)"
+            )
+        return load(mp, device=self.device)
+
+
+def _shipped_name(path: str, resolved: Path) -> bool:
+    """Whether a model key names a shipped model: a bare name (no folder, no extension), no file."""
+    return not resolved.exists() and Path(path).name == path and not Path(path).suffix
 
 
 def _cost_spec(entry: dict[str, Any], at: KeyPath, where: _Where) -> CostSpec:

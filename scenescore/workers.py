@@ -63,20 +63,31 @@ def worker_pool(jobs: int) -> Iterator[Pool]:
 
 
 def map_in_workers(
-    fn: Callable[..., T], items: Sequence[Any], jobs: int = 1, log: Log = print, bar: str | None = None
+    fn: Callable[..., T],
+    items: Sequence[Any],
+    jobs: int = 1,
+    log: Log = print,
+    bar: str | None = None,
+    done: Callable[[int, T], None] | None = None,
 ) -> list[T]:
     """``fn(item, log=log)`` for each of ``items``, in order. With ``jobs > 1``, in that many worker
     processes of one torch thread each (``fn`` must pickle: a module-level function or a
     :func:`functools.partial` of one); each item's log lines are printed when it finishes, and its
     result does not depend on ``jobs``. ``bar``: with workers, a progress bar of the items done under
-    that name (on a terminal; the log lines print above it)."""
+    that name (on a terminal; the log lines print above it). ``done(k, result)``: called in this process
+    as item ``k`` finishes (a sweep keeps each result then, so an interrupted run loses none it had)."""
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
+    finished = done or (lambda k, value: None)
     if jobs == 1 or len(items) <= 1:
-        return [fn(item, log=log) for item in items]
+        out = []
+        for k, item in enumerate(items):
+            out.append(fn(item, log=log))
+            finished(k, out[-1])
+        return out
     from tqdm.auto import tqdm
 
-    done: dict[int, T] = {}
+    results: dict[int, T] = {}
     with (
         worker_pool(min(jobs, len(items))) as pool,
         tqdm(
@@ -88,8 +99,9 @@ def map_in_workers(
                 for line in lines:
                     log(line)
             shown.update()
-            done[k] = value
-    return [done[k] for k in range(len(items))]
+            results[k] = value
+            finished(k, value)
+    return [results[k] for k in range(len(items))]
 
 
 def _one(task: tuple[Callable[..., Any], int, Any]) -> tuple[int, Any, list[str]]:

@@ -1,10 +1,12 @@
 """Train the models the package ships (``scenescore.models.pretrained(name)``), one per scenario of
-``scenescore.experiments.bundled.SCENARIOS`` (the paper's four and the zoo's).
+``scenescore.experiments.bundled.SCENARIOS`` (the paper's four and the zoo's) and of ``RELATION_MODELS``
+(three relations: left of, in front of, near).
 
 Each scenario's model is trained on its training split (``get(name).split(seed)[0]``, all of it, as
 ``scenescore experiment zoo`` trains) with the default ``TrainConfig`` and the seed recorded, written to
 ``scenescore/models/pretrained/<name>.ckpt`` (atomically), then loaded back from that file and measured
-on its documented figure (:mod:`scenescore.experiments.bundled`). ``index.json`` beside the checkpoints
+on its documented figure (:mod:`scenescore.experiments.bundled`; a relation model's is the fraction of
+its held-out examples placed back where the checker accepts them). ``index.json`` beside the checkpoints
 records, per name: the seed, the training settings, the training split's size, the commit, the figure
 and its tolerance. ``--only`` retrains some and keeps the others' entries.
 
@@ -24,7 +26,14 @@ from typing import Any
 from tqdm.auto import tqdm
 
 import scenescore.models
-from scenescore.experiments.bundled import SCENARIOS, figure, tolerance
+from scenescore.experiments.bundled import (
+    RELATION_MODELS,
+    RELATION_SHORTFALL,
+    SCENARIOS,
+    figure,
+    relation_figure,
+    tolerance,
+)
 from scenescore.learn import TrainConfig, train
 from scenescore.models import load
 from scenescore.provenance import git_commit
@@ -68,6 +77,15 @@ def measure(name: str, entry: dict[str, Any], folder: Path) -> dict[str, Any]:
     with its tolerance: the index entry's figure fields."""
     t0 = time.perf_counter()
     model = load(folder / f"{name}.ckpt")
+    if name in RELATION_MODELS:
+        rel = relation_figure(model, name, int(entry["seed"]))
+        return {
+            "satisfied": rel["satisfied"],
+            "held_out": rel["held_out"],
+            "min_satisfied": round(max(rel["satisfied"] - RELATION_SHORTFALL, 0.0), 6),
+            "length_scale_m": model.config.length_scale,
+            "figure_seconds": round(time.perf_counter() - t0, 1),
+        }
     fig = figure(model, name, int(entry["seed"]))
     return {
         "mean_error_m": round(fig["mean_error"], 6),
@@ -89,10 +107,11 @@ def main(argv: list[str] | None = None) -> int:
         "--measure-only", action="store_true", help="no training: measure the checkpoints there again"
     )
     args = ap.parse_args(argv)
-    names = list(SCENARIOS) if not args.only else [n.strip() for n in args.only.split(",") if n.strip()]
-    unknown = [n for n in names if n not in SCENARIOS]
+    known = (*SCENARIOS, *RELATION_MODELS)
+    names = list(known) if not args.only else [n.strip() for n in args.only.split(",") if n.strip()]
+    unknown = [n for n in names if n not in known]
     if unknown:
-        ap.error(f"no pretrained model for {', '.join(unknown)}; choose from {', '.join(SCENARIOS)}")
+        ap.error(f"no pretrained model for {', '.join(unknown)}; choose from {', '.join(known)}")
     config = TrainConfig() if args.iterations is None else TrainConfig(iterations=args.iterations)
     args.out.mkdir(parents=True, exist_ok=True)
     index_path = args.out / "index.json"
@@ -108,10 +127,14 @@ def main(argv: list[str] | None = None) -> int:
         index["models"][name] = entry
         index["models"] = dict(sorted(index["models"].items()))
         atomic_write_text(index_path, json.dumps(index, indent=1) + "\n")  # after each model: resumable
+        shown = (
+            f"{entry['satisfied']:.0%} of {entry['held_out']} held-out examples placed back satisfied"
+            if name in RELATION_MODELS
+            else f"mean error {entry['mean_error_m']:.4f} m over {entry['test_scenes']} test scenes"
+        )
         tqdm.write(
             f"{name}: {entry['bytes'] / 1000:.0f} kB, trained in {entry['train_seconds']:.0f} s, "
-            f"mean error {entry['mean_error_m']:.4f} m over {entry['test_scenes']} test scenes "
-            f"({entry['figure_seconds']:.0f} s)"
+            f"{shown} ({entry['figure_seconds']:.0f} s)"
         )
     return 0
 

@@ -46,3 +46,20 @@ def test_relative_links_name_files_that_exist(page):
         if re.match(r"[a-z]+:", target) or target.startswith("#"):
             continue
         assert (path.parent / target.split("#")[0]).exists(), f"{page}: link to missing {target}"
+
+
+def test_costs_relation_problem_is_the_example_and_loads(tmp_path):
+    """docs/costs.md's problem of relations is examples/relations.yaml as it runs (tests/test_examples.py
+    solves that file), and loads as written with the shipped relation models."""
+    import yaml
+
+    from scenescore.problem_file import load_problem
+
+    blocks = re.findall(r"```yaml\n(.*?)```", (DOCS / "costs.md").read_text(), flags=re.S)
+    shown = [b for b in blocks if "relation-left_of" in b]
+    assert len(shown) == 1
+    example = ROOT / "examples" / "relations.yaml"
+    assert yaml.safe_load(shown[0]) == yaml.safe_load(example.read_text())
+    (tmp_path / "p.yaml").write_text(shown[0])
+    lp = load_problem(tmp_path / "p.yaml")
+    assert len(lp.problem.scene) == 5 and lp.solver == "langevin>alm"

@@ -57,3 +57,21 @@ def test_yaml_example_solves_and_compares(workdir):
     )
     assert [row["solver"] for row in cmp.rows] == ["langevin", "langevin>osqp", "langevin>casadi"]
     assert cmp.rows[1]["feasible_rate"] == 1.0 and cmp.rows[2]["feasible_rate"] == 1.0
+
+
+def test_relations_example_solves_with_the_shipped_relation_models():
+    """examples/relations.yaml: three shipped relation models bound to five objects, collision and
+    bounds; its solve is feasible and every relation's checker accepts the arrangement."""
+    from scenescore.costs import Relation
+    from scenescore.problem_file import load_problem
+    from scenescore.scenarios.relations import RELATIONS
+    from scenescore.solvers import solve
+
+    lp = load_problem(EXAMPLES / "relations.yaml")
+    r = solve(lp.problem, lp.solver, seed=lp.seed, options=lp.options)
+    assert r.feasible and r.max_violation <= 1e-4, r.summary()
+    scene = lp.problem.scene.with_poses(r.poses)
+    terms = [c for _, c in lp.problem.cost.items if isinstance(c, Relation)]
+    asked = [(t.name.split("(")[0].removeprefix("relation-"), row) for t in terms for row in t.instances]
+    assert len(terms) == 3 and len(scene) == 5 and len(asked) == 4
+    assert [a for a in asked if not RELATIONS[a[0]].check(scene, a[1])] == []

@@ -18,6 +18,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.devices", 0),  # the device a model, a problem and its random numbers live on
     ("scenescore.workers", 0),  # worker processes that exit with the run that started them
     ("scenescore.provenance", 0),  # where a result came from: commit, date, versions, device, cores
+    ("scenescore.tasks", 0),  # an experiment's tasks, their JSON records, sweeps that resume from them
     ("scenescore.scene", 0),
     ("scenescore.units", 0),  # the length unit a dataset names, and lengths said in it
     ("scenescore.geometry", 1),
@@ -36,6 +37,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.scenarios", 7),
     ("scenescore.scenarios.zoo", 7),  # one module per zoo scenario on common.py (ZooScenario)
     ("scenescore.scenarios.relations", 7),  # spatial relations: exact checkers, example generators
+    ("scenescore.scenarios.relation_problems", 7),  # random consistent problems of relations, solved-checks
     ("scenescore.solvers", 8),
     ("scenescore.solvers.alm", 8),  # the batched augmented Lagrangian refinement
     ("scenescore.problem_file", 9),
@@ -50,6 +52,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.baselines", 10),
     ("scenescore.experiments", 11),
     ("scenescore.experiments.bundled", 11),  # the figure each pretrained model is documented with
+    ("scenescore.experiments.relations", 11),  # summed relation energies on random problems, per N
     ("scenescore.cli", 12),
     ("scenescore.cli.export", 12),  # `scenescore export`
     ("scenescore.cli.reference", 12),  # the command-line reference page, rendered from the parser

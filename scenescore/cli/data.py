@@ -13,6 +13,7 @@ from typing import Any
 from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
 from ..learn.training_state import SAVE_EVERY
 from ..memory import check, format_gb
+from ..models.ensemble import MAX_MEMBERS
 from ..scene import Scene, check_output_path, read_jsonl, write_jsonl
 from . import ITERATIONS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
@@ -61,7 +62,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
             "Training settings: every TrainConfig field can be set with --set KEY=VALUE or in a --config "
             "file, the network's and the chains' as network.KEY and chain.KEY (e.g. --set feature_noise=0.3 "
             "--set network.hidden=64). Precedence, lowest first: the defaults, --config, the options that "
-            "set a field (--iterations, --negatives, --average, --raw-edges, --activation, --message, "
+            "set a field (--iterations, --negatives, --members, --average, --raw-edges, --activation, --message, "
             "--absolute), --set."
         ),
     )
@@ -73,6 +74,14 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         type=number(1, 100_000, integer=True),
         default=None,
         help="counter-examples per scene (default 16)",
+    )
+    p.add_argument(
+        "--members",
+        type=number(1, MAX_MEMBERS, integer=True),
+        default=None,
+        help="train an ensemble of this many networks (seeds SEED, SEED+1000, ...): their mean energy "
+        "places, and a placed object the members disagree on is flagged; members times the training "
+        "time (default 1)",
     )
     p.add_argument(
         "--activation",
@@ -296,7 +305,12 @@ def _generate_within_budget(scenario: Any, name: str, n: int, seed: int) -> list
 def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
     """The training settings ``scenescore train``'s own options set (those given), as dotted keys."""
     out: dict[str, object] = dict(RAW_EDGES) if args.raw_edges else {}
-    given = {"iterations": args.iterations, "negatives": args.negatives, "average": args.average}
+    given = {
+        "iterations": args.iterations,
+        "negatives": args.negatives,
+        "average": args.average,
+        "members": args.members,
+    }
     out.update({k: v for k, v in given.items() if v is not None})
     network = {"network.activation": args.activation, "network.message": args.message}
     out.update({k: v for k, v in network.items() if v})

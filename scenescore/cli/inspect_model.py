@@ -38,6 +38,7 @@ def describe(model: ScoreModel, path: str | Path) -> dict[str, Any]:
     return {
         "file": str(path),
         "weights": sum(p.numel() for p in model.net.parameters()),
+        "members": model.members,  # networks whose mean energy the model is (an ensemble's, or 1)
         "network": cfg.to_dict(),
         "length_scale": cfg.length_scale,
         "walls": cfg.walls,
@@ -47,6 +48,7 @@ def describe(model: ScoreModel, path: str | Path) -> dict[str, Any]:
             "scenes": info.scenes,
             "seconds": info.seconds,
             "config": info.train_config,
+            "members": info.members,  # an ensemble's: each member's seed, final loss and seconds
         },
         "losses": {"final": info.final_loss, "chance": info.chance_loss, "history": info.history},
         "tidy_calibration": info.tidy.to_dict() if info.tidy is not None else None,

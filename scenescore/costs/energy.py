@@ -168,8 +168,9 @@ class LearnedEnergy(Cost, Guide):
 
 def _energy_casadi(term: LearnedEnergy, weight: float, nlp: SymbolicProblem) -> None:
     """The network rebuilt symbolically (``energy: mx``, exact Hessians) or through torch (``callback``;
-    always for a model with a local graph, whose neighbour lists have no symbolic form)."""
-    if nlp.options.get("energy", "mx") != "mx" or term.model.config.local:
+    always for a model with a local graph, whose neighbour lists have no symbolic form, and for an
+    ensemble)."""
+    if nlp.options.get("energy", "mx") != "mx" or term.model.config.local or term.model.members > 1:
         objective_by_torch(term, weight, nlp)
         return
     seen = ca.vertcat(*[nlp.poses[i, :] for i in term.visible])

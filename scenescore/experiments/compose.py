@@ -45,7 +45,7 @@ from ..learn import TrainConfig, train
 from ..scenarios.tv import TVScenario
 from ..scene import Scene, SceneError
 from ..solvers import get, solve
-from ..workers import map_in_workers
+from ..tasks import Sweep, Task, run_tasks
 from .report import Row, format_table
 
 if TYPE_CHECKING:
@@ -171,12 +171,14 @@ def run(
     jobs: int = 1,
     refine_options: dict[str, Any] | None = None,
     cache: Any = None,
+    sweep: Sweep | None = None,
 ) -> ComposeResult:
     """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level;
     SceneScore's model and problems on ``device`` (NeatNet on the CPU). ``jobs > 1`` runs the seeds in
     that many worker processes of one thread each (the counts do not depend on it; seconds are summed
     over the workers). ``refine_options``: the :data:`BATCHED` row's ``alm`` options (default
-    :data:`REFINE`). ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
+    :data:`REFINE`). ``cache``: a model cache folder (:mod:`scenescore.learn.cache`). ``sweep``: where
+    each seed's record is kept, to resume from (:mod:`scenescore.tasks`)."""
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -204,8 +206,19 @@ def run(
         refine_options=res.refine_options,
         cache=cache,
     )
-    for counts, uniq, seconds in map_in_workers(
-        one, list(range(seeds)), jobs, log, "Fig. 4 seeds" if progress else None
+    config = {
+        "methods": list(chosen),
+        "levels": list(levels),
+        "scenes": n_scenes,
+        "per_scene": per_scene,
+        "refine": k_refine,
+        "quick": quick,
+        "device": str(device),
+        "refine_options": res.refine_options,
+    }  # every setting a seed's record depends on
+    tasks = [Task.of("compose", seed=seed, config=config) for seed in range(seeds)]
+    for counts, uniq, seconds in run_tasks(
+        one, tasks, jobs, log, "Fig. 4 seeds" if progress else None, sweep
     ):
         for m in chosen:
             res.correct.setdefault(m, []).append(counts[m])
@@ -215,7 +228,7 @@ def run(
 
 
 def _seed(
-    seed: int,
+    task: Task,
     log: Callable[[str], None],
     chosen: list[str],
     levels: list[int],
@@ -231,6 +244,7 @@ def _seed(
 ) -> tuple[dict[str, list[float]], dict[str, list[float]], dict[str, float]]:
     """One seed of :func:`run`: per method, correct and distinct correct samples per clutter level, and
     seconds (``progress``: a log line per level; ``bars``: training's progress bar)."""
+    seed = task.seed
     scenario = TVScenario()
     train_s, test_s = scenario.split(seed)
     methods = _Methods.trained(chosen, train_s, seed, quick, bars, device, cache)

@@ -20,7 +20,7 @@ from ..learn import RAW_EDGES, TrainConfig
 from ..placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
 from ..scene import Scene, SceneError
-from ..workers import map_in_workers
+from ..tasks import Sweep, Task, describe, run_tasks
 from .report import SeedResults, format_table
 
 __all__ = ["PAPER", "fit_predict", "run", "METHODS", "EXTRA_METHODS"]
@@ -94,12 +94,14 @@ def run(
     device: Any = None,
     jobs: int = 1,
     cache: Any = None,
+    sweep: Sweep | None = None,
 ) -> MissingResult:
     """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs;
     ``device``: where SceneScore's models train and place (the baselines stay on the CPU). ``jobs > 1``
     runs each method on each seed in one of that many worker processes of one thread each (the figures
     do not depend on it); with ``scenes_fn`` (a function of this process) they run here, in turn.
-    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
+    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`). ``sweep``: where each method and
+    seed's record is kept, to resume from (:mod:`scenescore.tasks`)."""
     table = _methods(DiningScenario(), quick, encoder, device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]
@@ -115,21 +117,26 @@ def run(
         cache=cache,
         graphs={},
     )
-    tasks = [(seed, m) for seed in range(seeds) for m in chosen]
+    # every setting a record depends on beyond its method and seed
+    config = {
+        "quick": quick,
+        "graphs": describe(scenes_fn),
+        "encoder": describe(encoder),
+        "device": str(device),
+    }
+    tasks = [Task.of("missing", method=m, seed=seed, config=config) for seed in range(seeds) for m in chosen]
     res = MissingResult()
-    for (_, m), (figs, dt) in zip(
-        tasks,
-        map_in_workers(
-            one, tasks, 1 if scenes_fn is not None else jobs, log, "Table 1" if progress else None
-        ),
+    jobs = 1 if scenes_fn is not None else jobs
+    for task, (figs, dt) in zip(
+        tasks, run_tasks(one, tasks, jobs, log, "Table 1" if progress else None, sweep)
     ):
-        res.per_seed.setdefault(m, []).append(figs)
-        res.seconds[m] = res.seconds.get(m, 0.0) + dt
+        res.per_seed.setdefault(task.method, []).append(figs)
+        res.seconds[task.method] = res.seconds.get(task.method, 0.0) + dt
     return res
 
 
 def _one(
-    task: tuple[int, str],
+    task: Task,
     log: Callable[[str], None],
     quick: bool,
     progress: bool,
@@ -141,7 +148,7 @@ def _one(
 ) -> tuple[dict[str, float], float]:
     """One method on one seed of :func:`run`: its figures and seconds (``graphs``: each seed's scenes
     from ``scenes_fn``, made once for every method)."""
-    seed, m = task
+    seed, m = task.seed, task.method
     scenario = DiningScenario()
     train_s, test_s = scenario.split(seed)
     truth_cases = make_cases(test_s, scenario.missing)

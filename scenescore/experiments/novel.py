@@ -28,7 +28,7 @@ from ..placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene import Scene, SceneError
-from ..workers import map_in_workers
+from ..tasks import Sweep, Task, describe, run_tasks
 from .missing import fit_predict
 from .report import Row, SeedResults, format_table
 
@@ -178,6 +178,7 @@ def run(
     device: Any = None,
     jobs: int = 1,
     cache: Any = None,
+    sweep: Sweep | None = None,
     **scenario: Any,
 ) -> NovelResult:
     """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests.
@@ -189,6 +190,7 @@ def run(
     ``jobs > 1`` runs each method on each seed and rule in one of that many worker processes of one
     thread each (the figures do not depend on it); with ``encoders`` or ``scenes_fn`` (objects of this
     process) they run here, in turn. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`).
+    ``sweep``: where each method, seed and rule's record is kept, to resume from (:mod:`scenescore.tasks`).
     """
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
@@ -211,10 +213,22 @@ def run(
         scenario=scenario,
         graphs={},
     )
-    tasks = [(seed, rule, m) for seed in range(seeds) for rule in rules for m in chosen]
-    errors = dict(
-        zip(tasks, map_in_workers(one, tasks, 1 if here else jobs, log, "Table 2" if progress else None))
-    )
+    config = {
+        "quick": quick,
+        "n_test": n_test,
+        "encoders": [describe(e) for e in encoders or []],
+        "graphs": describe(scenes_fn),
+        "device": str(device),
+        "scenario": scenario,
+    }  # every setting a record depends on beyond its method, seed and rule
+    tasks = [
+        Task.of("novel", method=m, seed=seed, scenario=rule, config=config)
+        for seed in range(seeds)
+        for rule in rules
+        for m in chosen
+    ]
+    records = run_tasks(one, tasks, 1 if here else jobs, log, "Table 2" if progress else None, sweep)
+    errors = {(t.seed, t.scenario, t.method): r for t, r in zip(tasks, records)}
     res = NovelResult()
     for seed in range(seeds):
         for m in chosen:
@@ -226,7 +240,7 @@ def run(
 
 
 def _one(
-    task: tuple[int, str, str],
+    task: Task,
     log: Callable[[str], None],
     quick: bool,
     progress: bool,
@@ -240,7 +254,7 @@ def _one(
 ) -> tuple[float, float]:
     """One method on one seed and rule of :func:`run`: its position error (cm) and seconds (``graphs``:
     the derived cases per seed, rule and encoder, made once for every method)."""
-    seed, rule, m = task
+    seed, rule, m = task.seed, task.scenario, task.method
     sc = OrderingScenario(rule=rule, **scenario)
     train_s, test_s = sc.split(seed)
     if n_test is not None:

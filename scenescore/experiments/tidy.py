@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import partial
 from typing import Any, cast
 
@@ -37,8 +37,8 @@ from ..problem import Problem
 from ..scenarios import get
 from ..scene import Scene, SceneError, wrap_angle
 from ..solvers.langevin import LangevinOptions
+from ..tasks import Codec, Sweep, Task, run_tasks
 from ..tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
-from ..workers import map_in_workers
 from .report import Row, format_table
 
 __all__ = [
@@ -140,6 +140,20 @@ class MessyCase:
     kind: str  # "shift" or "swap"
     size: float  # the shift as a fraction of the half-extent (0 for swaps)
     seed: int = 0  # the seed of the scenario's split, the model's training and the displacement
+
+    def to_dict(self) -> dict[str, Any]:
+        """The case as JSON (a sweep's record keeps it)."""
+        scenes = {"truth": self.truth.to_dict(), "messy": self.messy.to_dict()}
+        return {"scenario": self.scenario, **scenes, "displaced": self.displaced, "kind": self.kind,
+                "size": self.size, "seed": self.seed}  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> MessyCase:
+        truth, messy = Scene.from_dict(d["truth"]), Scene.from_dict(d["messy"])
+        displaced = [str(n) for n in d["displaced"]]
+        return cls(
+            str(d["scenario"]), truth, messy, displaced, str(d["kind"]), float(d["size"]), int(d["seed"])
+        )
 
     @property
     def putback(self) -> float:
@@ -262,6 +276,19 @@ class TidyRun:
             **({"plans_valid": float(np.mean([o.plan_valid for o in made]))} if made else {}),
         }
 
+    def to_dict(self) -> dict[str, Any]:
+        """The run as JSON: a scenario and seed's record in a sweep's folder."""
+        outcomes = {m: [asdict(o) for o in got] for m, got in self.outcomes.items()}
+        cases = [c.to_dict() for c in self.cases]
+        return {"cases": cases, "outcomes": outcomes, "seconds": self.seconds, "efforts": list(self.efforts)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TidyRun:
+        outcomes = {str(m): [Outcome(**o) for o in got] for m, got in d["outcomes"].items()}
+        seconds = {str(m): float(v) for m, v in d["seconds"].items()}
+        efforts = tuple(float(e) for e in d["efforts"])
+        return cls([MessyCase.from_dict(c) for c in d["cases"]], outcomes, seconds, efforts)
+
     def per_case(self) -> list[dict[str, Any]]:
         """Every case with each method's outcome on it (for ``cases.json``): which objects were displaced
         and how, which each method moved, whether the scenario's check accepted the result."""
@@ -315,13 +342,15 @@ def run(
     device: Any = None,
     jobs: int = 1,
     cache: Any = None,
+    sweep: Sweep | None = None,
 ) -> TidyRun:
     """Train per scenario and seed of ``seeds`` (on ``device``; each seed its own split, model and
     displacements), make the messy cases, run every method on them (``options``: tidy's,
     ``place_options``: the baselines' placement; defaults: the library's); the cases of every seed are
     pooled. ``jobs > 1`` runs the scenario and seed pairs in that many worker processes of one thread
     each (the figures do not depend on it; each method's seconds are then summed over the workers).
-    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
+    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``sweep``: where each pair's record
+    is kept, to resume from (:mod:`scenescore.tasks`)."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise SceneError(f"tidy experiment: jobs must be a whole number >= 1, got {jobs!r}")
     seeds = list(seeds)
@@ -341,8 +370,18 @@ def run(
         progress=progress and jobs == 1,
         cache=cache,
     )
-    units = [(name, s) for name in scenarios for s in seeds]
-    parts = map_in_workers(one, units, jobs, log, "tidy" if progress else None)
+    settings = {
+        "efforts": list(efforts),
+        "test_scenes": test_scenes,
+        "training": config,
+        "sizes": list(sizes),
+        "options": options,
+        "place_options": place_options,
+        "device": str(device),
+    }  # every setting a pair's record depends on beyond its scenario and seed
+    units = [Task.of("tidy", scenario=name, seed=s, config=settings) for name in scenarios for s in seeds]
+    codec = Codec(TidyRun.to_dict, TidyRun.from_dict)
+    parts = run_tasks(one, units, jobs, log, "tidy" if progress else None, sweep, codec)
     res = TidyRun(efforts=tuple(efforts))
     for part in parts:  # in the order asked, whatever order the workers finished in
         res.cases += part.cases
@@ -353,7 +392,7 @@ def run(
 
 
 def run_scenario(
-    unit: tuple[str, int],
+    unit: Task | tuple[str, int],
     efforts: tuple[float, ...],
     test_scenes: int,
     config: TrainConfig | None,
@@ -366,7 +405,7 @@ def run_scenario(
     cache: Any = None,
 ) -> TidyRun:
     """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds."""
-    name, seed = unit
+    name, seed = (unit.scenario, unit.seed) if isinstance(unit, Task) else unit
     res = TidyRun(efforts=tuple(efforts))
     methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
     for m in methods:

@@ -35,7 +35,7 @@ from ..scenarios.zoo import ROOMS, ZOO
 from ..scenarios.zoo.common import Pose
 from ..scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
-from ..workers import map_in_workers
+from ..tasks import Codec, Sweep, Task, run_tasks
 from .report import Row, format_table
 
 __all__ = [
@@ -261,7 +261,7 @@ def _case_records(
 
 
 def _pair(
-    task: tuple[str, int],
+    task: Task,
     log: Callable[[str], None],
     config: TrainConfig | None,
     progress: bool,
@@ -273,7 +273,7 @@ def _pair(
     train_scenes: int | None = None,
 ) -> dict[str, Any]:
     """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done."""
-    name, seed = task
+    name, seed = task.scenario, task.seed
     one = run_one(name, seed, config, progress, energy_only, device, place, val, cache, train_scenes)
     got = one["cases"]
     log(
@@ -297,12 +297,14 @@ def run(
     val: float = 0.0,
     cache: Any = None,
     train_scenes: int | None = None,
+    sweep: Sweep | None = None,
 ) -> ZooResult:
     """The zoo table over ``seeds`` seeds for ``scenarios`` (default every zoo scenario but the rooms,
     whose training takes far longer; ``config``: the training settings; default the CLI's;
     ``device``: where the models train and place; ``place``: placement options; ``val``: the validation
     fraction held out of the training scenes; ``cache``: a model cache folder; ``train_scenes``: train
-    on that many of the 48 training scenes (12: the small-data variant); :func:`run_one`).
+    on that many of the 48 training scenes (12: the small-data variant); :func:`run_one`); ``sweep``:
+    where each pair's record is kept, to resume from (:mod:`scenescore.tasks`).
 
     ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
     largest scenarios first; each pair's figures do not depend on ``jobs``.
@@ -313,9 +315,19 @@ def run(
         raise SceneError(f"unknown zoo scenario(s) {unknown}; choose from {list(ZOO)}")
     if jobs < 1:
         raise SceneError(f"zoo: jobs must be at least 1, got {jobs}")
-    tasks = [(name, seed) for name in chosen for seed in range(seeds)]
+    settings = {
+        "training": config,
+        "energy_only": energy_only,
+        "device": str(device),
+        "place": place,
+        "val": val,
+        "train_scenes": train_scenes,
+    }  # every setting a pair's record depends on beyond its scenario and seed
+    tasks = [
+        Task.of("zoo", scenario=name, seed=seed, config=settings) for name in chosen for seed in range(seeds)
+    ]
     if jobs > 1:  # the largest graphs first, so the long pairs do not start last
-        tasks.sort(key=lambda t: -get(t[0]).counts[1])
+        tasks.sort(key=lambda t: -get(t.scenario).counts[1])
     pair = partial(
         _pair,
         config=config,
@@ -327,7 +339,8 @@ def run(
         cache=cache,
         train_scenes=train_scenes,
     )
-    done = dict(zip(tasks, map_in_workers(pair, tasks, jobs, log, "zoo" if progress else None)))
+    records = run_tasks(pair, tasks, jobs, log, "zoo" if progress else None, sweep, PAIR_RECORD)
+    done = {(t.scenario, t.seed): r for t, r in zip(tasks, records)}
     res = ZooResult()
     for name in chosen:
         sc = get(name)
@@ -349,6 +362,24 @@ def run(
             "objects": f"{lo}-{hi}",
         }
     return res
+
+
+def _encode_pair(one: dict[str, Any]) -> dict[str, Any]:
+    """A pair's record (:func:`run_one`) as JSON: its worst placement's case and scene as theirs."""
+    w = one["worst"]
+    worst = None if w is None else {"case": w[0].to_dict(), "placed": w[1].to_dict(), "t_cm": float(w[2])}
+    return {"cases": one["cases"], "worst": worst, "seconds": one["seconds"]}
+
+
+def _decode_pair(d: dict[str, Any]) -> dict[str, Any]:
+    w = d["worst"]
+    worst = None
+    if w is not None:
+        worst = (MissingCase.from_dict(w["case"]), Scene.from_dict(w["placed"]), float(w["t_cm"]))
+    return {"cases": list(d["cases"]), "worst": worst, "seconds": float(d["seconds"])}
+
+
+PAIR_RECORD = Codec(_encode_pair, _decode_pair)  # a (scenario, seed) pair's record in a sweep's folder
 
 
 def format_zoo(res: ZooResult) -> str:

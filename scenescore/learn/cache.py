@@ -39,8 +39,9 @@ def cached_path(
     device: torch.device,
 ) -> Path | None:
     """The file in ``folder`` for the model of this training: the same scenes, validation scenes,
-    settings, seed, device and torch thread count. None without a folder, and with an encoder given (a
-    model of another encoder is not kept)."""
+    settings, seed and device (not the thread count, which the weights do not depend on:
+    :mod:`scenescore.threads`). None without a folder, and with an encoder given (a model of another
+    encoder is not kept)."""
     if folder is None or encoder is not None:
         return None
     what = {
@@ -49,8 +50,5 @@ def cached_path(
         "config": cfg.to_dict(),
         "seed": int(seed),
         "device": str(device),
-        # the thread count changes the trained weights (float rounding): a model trained in the main
-        # process's threads is not the one a one-thread worker would train
-        "threads": torch.get_num_threads(),
     }
     return Path(folder) / f"{digest(what)}.ckpt"

@@ -10,6 +10,7 @@ from typing import Any, Literal, get_args
 
 from ..encoders import Encoder, FootprintEncoder
 from ..errors import ConfigError, check_number
+from ..models.ensemble import MAX_MEMBERS
 from ..models.network import WALLS, Activation, EnergyConfig
 from ..sampling import TRAINING, LangevinConfig
 from ..scene import Scene
@@ -119,6 +120,11 @@ class TrainConfig:
     # decay is lowered to 1 - 3 / (its averaged iterations), so that the weights of the average's first
     # iteration weigh at most e^-3 (0.99 from 600 iterations)
     average: float = 0.99
+    # an ensemble: the energy is the mean of this many networks, member m trained with seed
+    # seed + 1000 m (member 0 is the single model of the seed); where the members disagree about a
+    # placed object, its placement is flagged (scenescore.models.ensemble). Training takes members times
+    # as long
+    members: int = 1
 
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):
@@ -132,6 +138,7 @@ class TrainConfig:
         check_number(own, "perturbed", self.perturbed, 0, 100_000, integer=True)
         check_number(own, "reanchored", self.reanchored, 0, 100_000, integer=True)
         check_number(own, "neighbours", self.neighbours, 1, 1024, integer=True)
+        check_number(own, "members", self.members, 1, MAX_MEMBERS, integer=True)
         if self.graph not in get_args(Graph):
             raise ConfigError(f"{own}: graph: expected 'auto', 'dense' or 'local', got {self.graph!r}")
         if self.edge_encoder is not None:

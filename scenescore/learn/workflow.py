@@ -26,7 +26,7 @@ from ..tidying import calibrate, count_weight
 from .config import TrainConfig
 from .data import VALIDATION_FRACTION, check_training_data, split_validation
 from .logs import log_validation
-from .loop import train
+from .loop import member_state, train
 from .training_state import SAVE_EVERY
 
 __all__ = ["NothingLearned", "holdout", "train_model"]
@@ -145,6 +145,8 @@ def train_model(
     _save(model, out_path, report, record, say)
     if state is not None:
         Path(state).unlink(missing_ok=True)
+        for m in range(cfg.members if cfg.members > 1 else 0):
+            member_state(state, m).unlink(missing_ok=True)
     return model
 
 

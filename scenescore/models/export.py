@@ -39,6 +39,7 @@ import torch
 from torch import Tensor, nn
 
 from ..scene import Scene, SceneError, atomic_write_bytes
+from .ensemble import members_of
 from .model import ScoreModel
 from .network import WALLS, EnergyNet
 
@@ -241,8 +242,18 @@ def _write(proto: Any, path: str | os.PathLike, meta: dict[str, str]) -> Path:
     return path
 
 
+def _single(model: ScoreModel) -> None:
+    if model.members > 1:
+        raise SceneError(
+            f"export: this model is an ensemble of {model.members} networks, which the ONNX graph does not "
+            "carry yet; export a model trained with members: 1"
+        )
+
+
 def _float_net(model: ScoreModel) -> EnergyNet:
-    return copy.deepcopy(model.net).to("cpu", torch.float32).eval()  # exported from the CPU
+    _single(model)
+    (net,) = members_of(model.net)
+    return copy.deepcopy(net).to("cpu", torch.float32).eval()  # exported from the CPU
 
 
 def export_onnx(
@@ -251,6 +262,7 @@ def export_onnx(
     """Write ``model``'s energy as ONNX to ``path`` atomically (see the module's docstring for the inputs);
     ``dynamo``: None takes the TorchScript exporter where this torch still has it (fast, with
     ``dynamic_axes``) and ``torch.export`` otherwise; True or False forces one."""
+    _single(model)
     require("onnx")
     if model.config.local:
         raise SceneError(
@@ -272,6 +284,7 @@ def export_embedding_onnx(
 ) -> Path:
     """Write the node-embedding step as ONNX to ``path`` atomically: ``feats (N, F)``, ``sizes (N, 2)``
     -> ``nodes (N, D)``, the ``nodes`` input of :func:`export_onnx`'s graph."""
+    _single(model)
     require("onnx")
     net = _float_net(model)
     args = (torch.zeros(3, net.cfg.feat_dim), torch.zeros(3, 2))

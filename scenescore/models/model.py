@@ -16,6 +16,7 @@ from ..memory import check as check_memory
 from ..scene import Scene
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from .ensemble import MAX_MEMBERS, EnsembleNet, members_of
 from .info import ModelInfo
 from .network import EnergyConfig, EnergyNet, parameter_count
 from .trust import TrustReference
@@ -29,7 +30,7 @@ class ScoreModel(nn.Module):
     The model's device (``model.to(device)``, or ``load(path, device=...)``) is where its scenes are
     encoded to and where the problems built on it run (see :mod:`scenescore.devices`)."""
 
-    def __init__(self, net: EnergyNet, encoder: Encoder, info: ModelInfo | None = None):
+    def __init__(self, net: EnergyNet | EnsembleNet, encoder: Encoder, info: ModelInfo | None = None):
         super().__init__()
         self.net = net
         self.encoder = encoder
@@ -48,6 +49,21 @@ class ScoreModel(nn.Module):
     @property
     def config(self) -> EnergyConfig:
         return self.net.cfg
+
+    @property
+    def members(self) -> int:
+        """The networks whose mean energy this model is: 1, or an ensemble's size."""
+        return len(members_of(self.net))
+
+    def member_energies(self, poses: Tensor, st: SceneTensors) -> Tensor:
+        """Each member's energy of ``poses (B, N, 3)`` for scenes ``st`` (as :meth:`energy`): ``(members, B)``."""
+        if isinstance(self.net, EnsembleNet):
+            b = poses.shape[0]
+            feats, sizes, mask, rnd = st.feats, st.sizes, st.mask, st.round
+            if feats.shape[0] == 1 and b != 1:
+                feats, sizes, mask, rnd = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask, rnd))
+            return self.net.member_energies(poses, feats, sizes, mask, round=rnd, weight_grads=False)
+        return self.energy(poses, st, weight_grads=False)[None]
 
     def tensors(self, scenes: Sequence[Scene]) -> SceneTensors:
         """Encode scenes with this model's encoder, on the model's device."""
@@ -127,14 +143,17 @@ def load(
         cfg = EnergyConfig(**ck.energy_config)
     except (TypeError, ValueError) as e:
         raise CheckpointError(f"{path}: checkpoint metadata is damaged: energy_config: {e}") from None
-    count = parameter_count(cfg)  # the stored weights and the network's own copy, before either is built
+    members = _members(path, ck.info)
+    count = members * parameter_count(
+        cfg
+    )  # the stored weights and the network's copy, before either is built
     check_memory(
         2 * 4 * count,
         f"{path}: the network it declares ({cfg.describe()}: {count:,} weights)",
         "the widths it was trained with (hidden, edge_hidden, layers)",
     )
     with torch.device("meta"):  # the shapes and kinds the config declares, without allocating them
-        reference = EnergyNet(cfg).state_dict()
+        reference = _network(cfg, members).state_dict()
     expected = {k: tuple(v.shape) for k, v in reference.items()}
     stored = {k: tuple(v.shape) for k, v in ck.tensors.items()}
     if expected != stored:
@@ -166,7 +185,7 @@ def load(
         raise CheckpointError(
             f"{path}: encoder {encoder.name!r} makes {encoder.dim}-vectors, the model expects {cfg.feat_dim}"
         )
-    net = EnergyNet(cfg)
+    net = _network(cfg, members)
     try:
         net.load_state_dict(ck.tensors)
     except RuntimeError as e:
@@ -177,3 +196,24 @@ def load(
     except ValueError as e:  # a damaged trust reference, named
         raise CheckpointError(f"{path}: checkpoint metadata is damaged: {e}") from None
     return ScoreModel(net, encoder, info)
+
+
+def _network(cfg: EnergyConfig, members: int) -> EnergyNet | EnsembleNet:
+    return EnergyNet(cfg) if members == 1 else EnsembleNet.fresh(cfg, members)
+
+
+def _members(path: Path, info: dict[str, Any]) -> int:
+    """The networks a checkpoint holds: an ensemble's ``info.members`` records, else 1."""
+    records = info.get("members")
+    if records is None:
+        return 1
+    if not (
+        isinstance(records, list)
+        and 2 <= len(records) <= MAX_MEMBERS
+        and all(isinstance(r, dict) for r in records)
+    ):
+        raise CheckpointError(
+            f"{path}: checkpoint metadata is damaged: info.members: expected a list of 2 to "
+            f"{MAX_MEMBERS} member records, got {records!r:.80}"
+        )
+    return len(records)

@@ -11,6 +11,9 @@ with the reason, when
 - the object's share of the energy (the scene's energy minus the scene's without it) lies beyond that of
   every object of its category in the reference scenes (``energy``; in checkpoints from before those
   shares were stored: the placed scene's energy per object beyond the reference scenes'),
+- for an ensemble (:mod:`scenescore.models.ensemble`): some member's energy puts the object's share
+  beyond that of every object of its category in the reference scenes by that member (``members``: the
+  members disagree; the confidence is then the lowest member's),
 - the object is farther from every other object than any object of its category in the data (``far``),
 - it is pinned at a bound that no object of its category comes near in the data (within
   :data:`NEAR_BOUND` length scales: ``bound``),
@@ -49,6 +52,7 @@ __all__ = [
     "outside_data",
     "energy_per_object",
     "energy_shares",
+    "member_shares",
     "overlapping_categories",
     "BOUND_TOL",
     "relations",
@@ -99,6 +103,8 @@ class TrustReference:
     # category -> each reference object's share of its scene's energy (:func:`energy_shares`), sorted;
     # None in older checkpoints (then ``energy`` judges the placed scene's energy per object)
     shares: dict[str, list[float]] | None = None
+    # an ensemble's: each member's ``shares`` (by its own energy); None for one network
+    member_shares: list[dict[str, list[float]]] | None = None
 
     def may_touch_bounds(self, category: str) -> bool:
         """Whether an object of ``category`` pinned at a bound is where the data has them: some object of
@@ -149,10 +155,10 @@ class TrustReference:
         """Energies above this lie beyond the reference: its largest plus half its interquartile range."""
         return _beyond(np.asarray(self.energies))
 
-    def category_shares(self, category: str) -> np.ndarray:
+    def category_shares(self, category: str, member: int | None = None) -> np.ndarray:
         """The reference shares an object of ``category`` is judged against: its own category's, every
-        category's for an unseen one."""
-        table = self.shares or {}
+        category's for an unseen one; ``member``: by that member's energy (an ensemble's)."""
+        table = (self.shares if member is None else (self.member_shares or [])[member]) or {}
         rows = table.get(category) or [v for vs in table.values() for v in vs]
         return np.sort(np.asarray(rows, dtype=np.float64))
 
@@ -176,6 +182,11 @@ class TrustReference:
         def finite(v: Any) -> bool:
             return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
+        def share_table(t: Any) -> bool:
+            return isinstance(t, dict) and all(
+                isinstance(v, list) and len(v) > 0 and all(map(finite, v)) for v in t.values()
+            )
+
         checks = {
             "energies": isinstance(ref.energies, list)
             and len(ref.energies) > 0
@@ -190,13 +201,9 @@ class TrustReference:
             "overlaps": ref.overlaps is None or isinstance(ref.overlaps, list),
             "bound_gaps": ref.bound_gaps is None
             or (isinstance(ref.bound_gaps, dict) and all(map(finite, ref.bound_gaps.values()))),
-            "shares": ref.shares is None
-            or (
-                isinstance(ref.shares, dict)
-                and all(
-                    isinstance(v, list) and len(v) > 0 and all(map(finite, v)) for v in ref.shares.values()
-                )
-            ),
+            "shares": ref.shares is None or share_table(ref.shares),
+            "member_shares": ref.member_shares is None
+            or (isinstance(ref.member_shares, list) and all(map(share_table, ref.member_shares))),
             "relations": ref.relations is None
             or (
                 isinstance(ref.relations, dict)
@@ -217,6 +224,14 @@ class TrustReference:
                 f"{bad[0]}: not the expected finite numbers or lists, got {getattr(ref, bad[0])!r:.80}"
             )
         return ref
+
+
+def _members_doubt(ref: TrustReference, category: str, shares: np.ndarray) -> tuple[float, int]:
+    """An object's shares by each member of an ensemble ``(members,)`` against each member's reference:
+    the lowest member's confidence, and how many members put it beyond their reference's shares."""
+    refs = [ref.category_shares(category, m) for m in range(len(shares))]
+    confidence = min(float(np.mean(r >= v)) for r, v in zip(refs, shares))
+    return confidence, sum(int(v > _beyond(r)) for r, v in zip(refs, shares))
 
 
 def _beyond(values: np.ndarray) -> float:
@@ -360,6 +375,16 @@ def energy_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) 
     """Each object's share of ``scene``'s learned energy (every pose known): the scene's energy minus
     the energy of the scene without it (a lone object's: the scene's energy), for ``names`` (default all)
     ``(K,)``. Unlike the scene's energy it does not move with how unusual the rest of the scene is."""
+    return _shares(model, scene, names, members=False)[0]
+
+
+def member_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) -> np.ndarray:
+    """:func:`energy_shares` by each member of an ensemble's energy: ``(members, K)`` (one row for a
+    single network)."""
+    return _shares(model, scene, names, members=True)
+
+
+def _shares(model: Any, scene: Scene, names: Sequence[str] | None, members: bool) -> np.ndarray:
     names = list(scene.names if names is None else names)
     rest = [
         replace(scene, objects=[o for o in scene.objects if o.name != name])
@@ -368,8 +393,9 @@ def energy_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) 
     ]
     with torch.no_grad():
         st = model.tensors([scene, *rest])
-        e = model.energy(st.poses, st).double().cpu().numpy()
-    return e[0] - e[1:] if rest else e[:1].repeat(len(names))
+        e = model.member_energies(st.poses, st) if members else model.energy(st.poses, st)[None]
+        e = e.double().cpu().numpy()  # (members or 1, 1 + K)
+    return e[:, :1] - e[:, 1:] if rest else e[:, :1].repeat(len(names), axis=1)
 
 
 def reference(
@@ -394,10 +420,14 @@ def reference(
         feats = torch.cat([model.tensors([s]).feats[0] for s in train]).double().cpu().numpy()
     uniq = np.unique(np.round(feats, 4), axis=0)[: max(8, min(MAX_FEATURES, 20_000 // feats.shape[1]))]
     radius = max(1.0, 1.5 * feature_noise * math.sqrt(feats.shape[1]))
-    shares: dict[str, list[float]] = {}
-    for s in held_out or train:
-        for o, v in zip(s.objects, energy_shares(model, s)):
-            shares.setdefault(o.category, []).append(float(v))
+    size = getattr(model, "members", 1)
+    tables: list[dict[str, list[float]]] = [{} for _ in range(size + 1 if size > 1 else 1)]
+    for s in held_out or train:  # the mean energy's shares, then each member's
+        rows = [energy_shares(model, s), *(member_shares(model, s) if size > 1 else [])]
+        for table, row in zip(tables, rows, strict=True):
+            for o, v in zip(s.objects, row):
+                table.setdefault(o.category, []).append(float(v))
+    kept = [{c: _evenly(sorted(v), MAX_SHARES) for c, v in sorted(t.items())} for t in tables]
     return TrustReference(
         energies=sorted(energy_per_object(model, held_out or train)),
         length_scale=length,
@@ -409,7 +439,8 @@ def reference(
         overlaps=overlapping_categories(scenes, OVERLAP_TOL * length),
         relations=relations(train, length),
         bound_gaps={c: max(0.0, g) / length for c, g in gaps.items()},
-        shares={c: _evenly(sorted(v), MAX_SHARES) for c, v in sorted(shares.items())},
+        shares=kept[0],
+        member_shares=kept[1:] if size > 1 else None,
     )
 
 
@@ -420,8 +451,11 @@ def assess(
 
     ``feats``: the scene's encoded features ``(N, F)`` when the caller has them (saves encoding again).
     """
+    per_member = None  # (members, K): each member's shares, an ensemble's
     if ref.shares:
         share = dict(zip(names, energy_shares(model, scene, names).tolist()))
+        if ref.member_shares and getattr(model, "members", 1) == len(ref.member_shares):
+            per_member = member_shares(model, scene, names)
     else:  # a checkpoint from before the shares were stored: the scene's energy per object
         e = energy_per_object(model, [scene])[0]
         ref_e = np.asarray(ref.energies)
@@ -434,20 +468,31 @@ def assess(
     caveats = getattr(getattr(model, "info", None), "caveats", None)  # the model's ``info.caveats``
     unit = length_unit(scene)
     out = {}
-    for name in names:
+    for k, name in enumerate(names):
         i = scene.index(name)
         o = scene.objects[i]
         flags = []
+        if per_member is not None:
+            confidence, doubt = _members_doubt(ref, o.category, per_member[:, k])
         if ref.shares:
             mine = ref.category_shares(o.category)
-            confidence = float(np.mean(mine >= share[name]))
+            mean_confidence = float(np.mean(mine >= share[name]))
             limit = _beyond(mine)  # ref.share_limit(o.category)
+            whose = f"any {o.category}'s" if o.category in ref.shares else "any object's"
             if share[name] > limit:
-                whose = f"any {o.category}'s" if o.category in ref.shares else "any object's"
                 flags.append(
                     f"energy: its share of the scene's energy {share[name]:.3g} lies beyond {whose} in the "
                     f"data ({limit:.3g})"
                 )
+            if per_member is None:
+                confidence = mean_confidence
+            else:
+                confidence = min(confidence, mean_confidence)
+                if doubt:
+                    flags.append(
+                        f"members: {doubt} of {len(per_member)} members put its share of their energy "
+                        f"beyond {whose} in the data (the ensemble disagrees)"
+                    )
         else:
             confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
             if ref_e.size and e > ref.energy_limit:

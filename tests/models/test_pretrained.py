@@ -13,7 +13,14 @@ from pathlib import Path
 import pytest
 
 from scenescore.cli import main
-from scenescore.experiments.bundled import SCENARIOS, figure, tolerance
+from scenescore.experiments.bundled import (
+    RELATION_MODELS,
+    RELATION_SHORTFALL,
+    SCENARIOS,
+    figure,
+    relation_figure,
+    tolerance,
+)
 from scenescore.models import CheckpointError, ScoreModel, pretrained, pretrained_index, pretrained_names
 from scenescore.scenarios import available
 
@@ -22,15 +29,19 @@ INDEX = pretrained_index()
 
 
 def test_every_scenario_ships_a_model_with_its_record():
-    assert pretrained_names() == sorted(INDEX) == sorted(SCENARIOS)
-    assert set(SCENARIOS) <= set(available()) and len(SCENARIOS) == 16
+    assert pretrained_names() == sorted(INDEX) == sorted((*SCENARIOS, *RELATION_MODELS))
+    assert set(SCENARIOS) | set(RELATION_MODELS) <= set(available()) and len(SCENARIOS) == 16
     for name, entry in INDEX.items():
         assert entry["seed"] == 0 and entry["train_scenes"] > 0, name
         assert entry["config"]["iterations"] > 0 and entry["commit"]["commit"], name
+        assert 20_000 < entry["bytes"] < 400_000, f"{name}: {entry['bytes']} bytes"
+        if name in RELATION_MODELS:  # its figure: the fraction of held-out examples placed back satisfied
+            assert entry["held_out"] >= 1 and 0.5 <= entry["satisfied"] <= 1.0, name
+            assert entry["min_satisfied"] == pytest.approx(max(entry["satisfied"] - RELATION_SHORTFALL, 0.0))
+            continue
         assert entry["test_scenes"] >= 1 and len(entry["errors_m"]) >= entry["test_scenes"], name
         stated = tolerance(entry["mean_error_m"], entry["length_scale_m"])
         assert entry["tolerance_m"] == pytest.approx(stated, abs=1e-6), name
-        assert 20_000 < entry["bytes"] < 400_000, f"{name}: {entry['bytes']} bytes"
 
 
 def test_every_indexed_name_loads():
@@ -42,7 +53,19 @@ def test_every_indexed_name_loads():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(INDEX))
+@pytest.mark.parametrize("name", sorted(RELATION_MODELS))
+def test_shipped_relation_model_places_its_held_out_examples(name):
+    entry = INDEX[name]
+    got = relation_figure(pretrained(name), name, entry["seed"], entry["held_out"])
+    assert got["held_out"] == entry["held_out"]
+    assert got["satisfied"] >= entry["min_satisfied"], (
+        f"{name}: {got['satisfied']:.2f} of held-out examples satisfied, documented {entry['satisfied']:.2f} "
+        f"less {RELATION_SHORTFALL}"
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
 def test_shipped_model_reaches_its_documented_figure(name):
     entry = INDEX[name]
     got = figure(pretrained(name), name, entry["seed"], entry["test_scenes"])
@@ -58,7 +81,7 @@ def test_unknown_name_is_one_line_naming_the_available_ones():
         pretrained("dinning")
     msg = str(err.value)
     assert "\n" not in msg and "'dinning'" in msg and "did you mean 'dining'" in msg
-    assert all(n in msg for n in SCENARIOS)
+    assert all(n in msg for n in (*SCENARIOS, *RELATION_MODELS))
 
 
 def test_the_package_data_includes_every_shipped_file():

@@ -1,0 +1,96 @@
+"""The relations experiment: its problems are consistent and seeded, 'solved' is the checkers' verdict
+on hand-built cases, and a tiny run from the command line writes the documented rows."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from scenescore.cli import main
+from scenescore.experiments.relations import METHODS
+from scenescore.scenarios.relation_problems import (
+    PROBLEM_RELATIONS,
+    RelationProblem,
+    relation_problem,
+    relation_problems,
+)
+from scenescore.scene import Scene, SceneError, SceneObject
+
+BOUNDS = ((-0.6, -0.4), (0.6, 0.4))
+
+
+def _problem() -> RelationProblem:
+    """a left of b, c near b; a solution: a at the left, b in the middle, c just right of b."""
+    objs = [
+        SceneObject("a", "a", (0.1, 0.1), (-0.4, 0.0, 0.0)),
+        SceneObject("b", "b", (0.1, 0.1), (0.0, 0.0, 0.0), shape="disk"),
+        SceneObject("c", "c", (0.1, 0.06), (0.12, 0.0, 0.0)),
+    ]
+    return RelationProblem(Scene(objs, BOUNDS), (("left_of", ("a", "b")), ("near", ("c", "b"))))
+
+
+def test_solved_is_every_checker_and_non_overlap_and_bounds():
+    p = _problem()
+    good = p.scene.poses()
+    assert p.solved(good)
+    swapped = good.copy()
+    swapped[[0, 1]] = swapped[[1, 0]]  # b left of a
+    assert not p.solved(swapped)
+    far = good.copy()
+    far[2, 0] = 0.4  # c 30 cm from b: not near
+    assert not p.solved(far)
+    overlapping = good.copy()
+    overlapping[2, 0] = 0.08  # c overlaps b (near needs them apart too)
+    assert not p.solved(overlapping)
+    outside = good.copy()
+    outside[0, 0] = -0.58  # a's footprint leaves the table, still left of b
+    assert not p.solved(outside)
+    with pytest.raises(SceneError, match="shape"):
+        p.solved(good[:2])
+
+
+@pytest.mark.parametrize("n", [2, 3, 6, 10])
+def test_problems_are_consistent_seeded_and_about_one_and_a_half_relations_per_object(n):
+    ps = relation_problems(n, 4, seed=3)
+    for p in ps:
+        assert len(p.scene) == n and all(o.pose is not None for o in p.scene.objects)
+        assert all(o.pose is None for o in p.unposed.objects)
+        assert p.solved(p.scene.poses())  # the arrangement it was drawn from solves it
+        assert 1 <= len(p.relations) <= round(1.5 * n) and {r for r, _ in p.relations} <= set(
+            PROBLEM_RELATIONS
+        )
+        assert len(set(p.relations)) == len(p.relations)
+    if n >= 3:
+        assert all(len(p.relations) == round(1.5 * n) for p in ps)
+    again = relation_problems(n, 2, seed=3)
+    assert [p.relations for p in again] == [p.relations for p in ps[:2]]
+    np.testing.assert_array_equal(again[1].scene.poses(), ps[1].scene.poses())
+    assert relation_problems(n, 1, seed=4)[0].relations != ps[0].relations
+
+
+def test_bad_problem_requests_are_clear_errors():
+    with pytest.raises(SceneError, match="2 to 10"):
+        relation_problem(11, 0)
+    with pytest.raises(SceneError, match="centred_on"):
+        relation_problem(3, 0, relations=("centred_on",))
+
+
+def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
+    out = tmp_path / "rel"
+    argv = ["experiment", "relations", "--seeds", "1", "--problems", "2", "--sizes", "2,3", "--tries", "2"]
+    argv += ["--iterations", "5", "--jobs", "1", "--quiet", "--out", str(out)]
+    assert main(argv) == 0
+    doc = json.loads((out / "results.json").read_text())
+    rows = doc["experiments"][0]["rows"]
+    assert [r["method"] for r in rows] == METHODS
+    for r in rows:
+        for n in (2, 3):
+            assert 0.0 <= r[f"solved_{n}"] <= 1.0 and r[f"solved_{n}"] * 2 == int(r[f"solved_{n}"] * 2)
+            assert r[f"seconds_{n}"] > 0
+    assert (out / "solved.png").stat().st_size > 0 and (out / "table.md").exists()
+    printed = capsys.readouterr().out
+    assert "| Rejection (uniform) |" in printed and "N=3" in printed
+    assert main(["experiment", "relations", "--sizes", "1,2", "--out", str(out)]) == 2
+    assert "--sizes" in capsys.readouterr().err

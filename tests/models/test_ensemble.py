@@ -1,0 +1,141 @@
+"""Ensembles: several networks trained with different seeds, their mean energy placing and their
+disagreement flagging. Each member is the single model of its seed; the ensemble's energy is the
+members' mean, its gradient exact (float64), its checkpoint round-trips and refuses damage, and a
+member that scores a placement beyond its own data flags it."""
+
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+import scenescore as ss
+from scenescore.cli import main
+from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.models import CheckpointError, ScoreModel, load
+from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
+from scenescore.models.export import export_onnx
+from scenescore.models.trust import assess, member_shares
+from scenescore.placement import PLACE
+from scenescore.scene import SceneError
+
+CFG = TrainConfig(iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+SEED = 3
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    return ss.scenarios.get("dining").generate(10, 0)
+
+
+@pytest.fixture(scope="module")
+def ensemble(scenes):
+    return train(scenes, replace(CFG, members=2), seed=SEED, progress=False)
+
+
+def test_each_member_is_the_single_model_of_its_seed(scenes, ensemble):
+    assert ensemble.members == 2
+    assert [m["seed"] for m in ensemble.info.members] == [SEED, member_seed(SEED, 1)] == [3, 1003]
+    single = train(scenes, CFG, seed=member_seed(SEED, 1), progress=False)
+    second = members_of(ensemble.net)[1]
+    for a, b in zip(second.state_dict().values(), single.net.state_dict().values(), strict=True):
+        assert torch.equal(a, b)  # the same training, op for op
+
+
+def test_the_energy_is_the_members_mean_on_every_path(scenes, ensemble):
+    model = ScoreModel(
+        EnsembleNet([copy.deepcopy(n).double() for n in members_of(ensemble.net)]), ensemble.encoder
+    )
+    st = model.tensors(scenes[:3])
+    with torch.no_grad():
+        mean = model.energy(st.poses, st)
+        each = model.member_energies(st.poses, st)
+        alone = [ScoreModel(n, ensemble.encoder).energy(st.poses, st) for n in members_of(model.net)]
+        by_scene = torch.cat([model.energy_fn(s)(model.tensors([s]).poses) for s in scenes[:3]])
+    assert each.shape == (2, 3)
+    torch.testing.assert_close(each, torch.stack(alone))
+    torch.testing.assert_close(mean, each.mean(dim=0))
+    torch.testing.assert_close(by_scene, mean)  # precomputed node embeddings, side by side
+
+
+def test_the_pose_gradient_is_exact(scenes, ensemble):
+    model = ScoreModel(
+        EnsembleNet([copy.deepcopy(n).double() for n in members_of(ensemble.net)]), ensemble.encoder
+    )
+    fn = model.energy_fn(scenes[0])
+    x = model.tensors([scenes[0]]).poses.clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(lambda p: fn(p), (x,), eps=1e-6, atol=1e-5)
+
+
+def test_a_checkpoint_round_trips_and_refuses_damaged_members(tmp_path, scenes, ensemble):
+    path = tmp_path / "ens.ckpt"
+    ensemble.save(path)
+    back = load(path)
+    assert back.members == 2 and back.info.members == ensemble.info.members
+    st = back.tensors(scenes[:2])
+    with torch.no_grad():
+        assert torch.equal(back.energy(st.poses, st), ensemble.energy(st.poses, st))
+    info = back.info.to_dict()
+    info["members"] = [{"seed": 1}]  # one record for two networks' weights
+    from scenescore.models.checkpoint import read_checkpoint, write_checkpoint
+
+    ck = read_checkpoint(path)
+    bad = tmp_path / "bad.ckpt"
+    write_checkpoint(bad, ck.tensors, ck.energy_config, ck.encoder, info)
+    with pytest.raises(CheckpointError, match=rf"{bad.name}.*members"):
+        load(bad)
+    del info["members"]  # two networks' weights read as one network's
+    write_checkpoint(bad, ck.tensors, ck.energy_config, ck.encoder, info)
+    with pytest.raises(CheckpointError, match=rf"{bad.name}.*do not match"):
+        load(bad)
+
+
+def test_inspect_names_the_members(tmp_path, ensemble, capsys):
+    path = tmp_path / "ens.ckpt"
+    ensemble.save(path)
+    capsys.readouterr()
+    assert main(["inspect", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["members"] == 2
+
+
+def test_export_refuses_an_ensemble(tmp_path, ensemble):
+    with pytest.raises(SceneError, match="ensemble of 2 networks"):
+        export_onnx(ensemble, tmp_path / "e.onnx")
+
+
+def test_placement_runs_and_a_doubting_member_flags(scenes, ensemble):
+    scene = scenes[0]
+    name = scene.names[-1]
+    ref = ensemble.trust
+    assert ref is not None and ref.member_shares is not None and len(ref.member_shares) == 2
+    quick = replace(PLACE, particles=8, candidates=64, chain=replace(PLACE.chain, steps=8, final_descent=4))
+    placed = ss.place(ensemble, scene.without(name), quick, seed=0)
+    assert placed[name].pose is not None
+    shares = member_shares(ensemble, placed, [name])
+    assert shares.shape == (2, 1) and np.isfinite(shares).all()
+    # the second member's data put every share of this category far below anything a pose can score
+    cat = scene[name].category
+    doubting = replace(ref, member_shares=[ref.member_shares[0], {cat: [-1e9, -1e9]}])
+    got = assess(doubting, ensemble, placed, [name])[name]
+    assert any(f.startswith("members: 1 of 2 members") for f in got.flags)
+    assert got.confidence == 0.0
+    calm = replace(ref, member_shares=[{cat: [1e9, 1e9]}, {cat: [1e9, 1e9]}], shares={cat: [1e9, 1e9]})
+    assert not any(f.startswith("members:") for f in assess(calm, ensemble, placed, [name])[name].flags)
+
+
+def test_train_members_on_the_command_line(tmp_path, scenes, capsys):
+    data = tmp_path / "data.jsonl"
+    ss.scene.write_jsonl(data, scenes)
+    out = tmp_path / "m.ckpt"
+    argv = ["train", str(data), "--out", str(out), "--members", "2", "--iterations", "20", "--val", "0"]
+    argv += ["--set", "network.hidden=16", "--set", "network.layers=1", "--quiet", "--force"]
+    assert main(argv) == 0
+    assert load(out).members == 2
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["train", str(data), "--out", str(out), "--members", "17", "--quiet"])
+    assert "--members" in capsys.readouterr().err
