@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from shapely.geometry import Polygon, box
 
 from scenescore.cli import main
 from scenescore.scenarios import RelationScenario, available, get
@@ -85,6 +86,9 @@ def test_generated_examples_hold_their_relation(relation):
     for s in scenes:
         assert scenario.check(s, tol=0.0) and s.names[:arity] == ["a", "b", "c"][:arity]
         assert ("compass" in s.names) == RELATIONS[relation].frame
+        (x0, y0), (x1, y1) = s.bounds
+        table = box(x0, y0, x1, y1).buffer(1e-9)
+        assert all(table.covers(Polygon(o.world_polygon())) for o in s.objects), s.to_json()
     assert [s.to_json() for s in scenes] == [s.to_json() for s in scenario.generate(24, 3)]
     assert [s.to_json() for s in scenes] != [s.to_json() for s in scenario.generate(24, 4)]
     # the examples are not all one arrangement: positions spread over the table
