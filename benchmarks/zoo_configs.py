@@ -29,7 +29,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from scenescore.experiments.zoo import CATASTROPHIC_CM, CATASTROPHIC_ORACLE, run
+from scenescore.experiments.zoo import catastrophic, run
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
@@ -112,8 +112,7 @@ def main() -> None:
 
 def _bad_flagged(cases: list[dict]) -> str:
     """How many of the catastrophic placements the trust check flagged: ``k of n``."""
-    oracle = sum(c["oracle_t_cm"] for c in cases) / len(cases)
-    bad = [c for c in cases if c["t_cm"] > CATASTROPHIC_CM and c["t_cm"] > CATASTROPHIC_ORACLE * oracle]
+    bad = [c for c, b in zip(cases, catastrophic(cases)) if b]
     return f"{sum(c['flagged'] for c in bad)} of {len(bad)}"
 
 

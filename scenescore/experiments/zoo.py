@@ -47,6 +47,7 @@ __all__ = [
     "format_zoo",
     "CATASTROPHIC_CM",
     "CATASTROPHIC_ORACLE",
+    "catastrophic",
 ]
 
 CATASTROPHIC_CM = 25.0  # a placement is catastrophic when it is this far off ...
@@ -106,7 +107,7 @@ class ZooResult:
             r = np.array([c["R_deg"] for c in cases if c["R_deg"] is not None])
             ro = np.array([c["oracle_R_deg"] for c in cases if c["oracle_R_deg"] is not None])
             om = float(o.mean())
-            cat = int(np.sum((t > CATASTROPHIC_CM) & (t > CATASTROPHIC_ORACLE * om)))
+            cat = int(np.sum(catastrophic(cases)))
             good = t <= 3 * max(om, 1e-9)
             flags = np.array([c["flagged"] for c in cases])
             # a miss (beyond 3 oracle means) is the search's when the truth has the lower energy
@@ -132,6 +133,14 @@ class ZooResult:
             }
             out.append(Row(name, figs))
         return sorted(out, key=lambda r: -r.figures["ratio"])
+
+
+def catastrophic(cases: Sequence[dict[str, Any]]) -> np.ndarray:
+    """Which of one scenario's case records are catastrophic: more than :data:`CATASTROPHIC_CM` and
+    :data:`CATASTROPHIC_ORACLE` oracle means (the scenario's mean oracle error) off."""
+    t = np.array([c["t_cm"] for c in cases])
+    om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
+    return (t > CATASTROPHIC_CM) & (t > CATASTROPHIC_ORACLE * om)
 
 
 def place_back(

@@ -145,8 +145,9 @@ def train_model(
     _save(model, out_path, report, record, say)
     if state is not None:
         Path(state).unlink(missing_ok=True)
-        for m in range(cfg.members if cfg.members > 1 else 0):
-            member_state(state, m).unlink(missing_ok=True)
+        if cfg.members > 1:  # an ensemble's members each kept their own state
+            for m in range(cfg.members):
+                member_state(state, m).unlink(missing_ok=True)
     return model
 
 

@@ -251,8 +251,7 @@ def _single(model: ScoreModel) -> None:
 
 
 def _float_net(model: ScoreModel) -> EnergyNet:
-    _single(model)
-    (net,) = members_of(model.net)
+    (net,) = members_of(model.net)  # its callers refused an ensemble (_single)
     return copy.deepcopy(net).to("cpu", torch.float32).eval()  # exported from the CPU
 
 

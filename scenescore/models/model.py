@@ -58,10 +58,7 @@ class ScoreModel(nn.Module):
     def member_energies(self, poses: Tensor, st: SceneTensors) -> Tensor:
         """Each member's energy of ``poses (B, N, 3)`` for scenes ``st`` (as :meth:`energy`): ``(members, B)``."""
         if isinstance(self.net, EnsembleNet):
-            b = poses.shape[0]
-            feats, sizes, mask, rnd = st.feats, st.sizes, st.mask, st.round
-            if feats.shape[0] == 1 and b != 1:
-                feats, sizes, mask, rnd = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask, rnd))
+            feats, sizes, mask, rnd = _broadcast(st, poses.shape[0])
             return self.net.member_energies(poses, feats, sizes, mask, round=rnd, weight_grads=False)
         return self.energy(poses, st, weight_grads=False)[None]
 
@@ -83,10 +80,7 @@ class ScoreModel(nn.Module):
     def energy(self, poses: Tensor, st: SceneTensors, weight_grads: bool = True) -> Tensor:
         """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``;
         ``weight_grads=False``: a gradient for the poses alone (sampling; see :meth:`EnergyNet.forward`)."""
-        b = poses.shape[0]
-        feats, sizes, mask, rnd = st.feats, st.sizes, st.mask, st.round
-        if feats.shape[0] == 1 and b != 1:
-            feats, sizes, mask, rnd = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask, rnd))
+        feats, sizes, mask, rnd = _broadcast(st, poses.shape[0])
         return self.net(poses, feats, sizes, mask, round=rnd, weight_grads=weight_grads)
 
     def energy_fn(self, scene: Scene) -> Callable[[Tensor], Tensor]:
@@ -118,6 +112,14 @@ class ScoreModel(nn.Module):
             {"name": self.encoder.name, "config": self.encoder.config()},
             self.info.to_dict(),
         )
+
+
+def _broadcast(st: SceneTensors, b: int) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """``st``'s features, sizes, mask and round flags, one scene's expanded over a batch of ``b``."""
+    feats, sizes, mask, rnd = st.feats, st.sizes, st.mask, st.round
+    if feats.shape[0] == 1 and b != 1:
+        feats, sizes, mask, rnd = (t.expand(b, *t.shape[1:]) for t in (feats, sizes, mask, rnd))
+    return feats, sizes, mask, rnd
 
 
 def with_walls(poses: Tensor, st: SceneTensors) -> Tensor:

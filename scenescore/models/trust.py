@@ -381,10 +381,14 @@ def energy_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) 
 def member_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) -> np.ndarray:
     """:func:`energy_shares` by each member of an ensemble's energy: ``(members, K)`` (one row for a
     single network)."""
-    return _shares(model, scene, names, members=True)
+    rows = _shares(model, scene, names, members=True)
+    return rows[1:] if len(rows) > 1 else rows
 
 
 def _shares(model: Any, scene: Scene, names: Sequence[str] | None, members: bool) -> np.ndarray:
+    """The shares by the model's energy, then (``members``, for an ensemble) by each member's, from one
+    pass: ``(1 [+ members], K)``. The ensemble's energy is its members' mean, taken here as the network
+    takes it, so row 0 is :func:`energy_shares`'s to the bit."""
     names = list(scene.names if names is None else names)
     rest = [
         replace(scene, objects=[o for o in scene.objects if o.name != name])
@@ -393,8 +397,12 @@ def _shares(model: Any, scene: Scene, names: Sequence[str] | None, members: bool
     ]
     with torch.no_grad():
         st = model.tensors([scene, *rest])
-        e = model.member_energies(st.poses, st) if members else model.energy(st.poses, st)[None]
-        e = e.double().cpu().numpy()  # (members or 1, 1 + K)
+        if members and getattr(model, "members", 1) > 1:
+            each = model.member_energies(st.poses, st)
+            rows = torch.cat([each.mean(dim=0, keepdim=True), each])
+        else:
+            rows = model.energy(st.poses, st)[None]
+    e = rows.double().cpu().numpy()  # (rows, 1 + K)
     return e[:, :1] - e[:, 1:] if rest else e[:, :1].repeat(len(names), axis=1)
 
 
@@ -423,8 +431,7 @@ def reference(
     size = getattr(model, "members", 1)
     tables: list[dict[str, list[float]]] = [{} for _ in range(size + 1 if size > 1 else 1)]
     for s in held_out or train:  # the mean energy's shares, then each member's
-        rows = [energy_shares(model, s), *(member_shares(model, s) if size > 1 else [])]
-        for table, row in zip(tables, rows, strict=True):
+        for table, row in zip(tables, _shares(model, s, None, members=True), strict=True):
             for o, v in zip(s.objects, row):
                 table.setdefault(o.category, []).append(float(v))
     kept = [{c: _evenly(sorted(v), MAX_SHARES) for c, v in sorted(t.items())} for t in tables]
@@ -453,9 +460,10 @@ def assess(
     """
     per_member = None  # (members, K): each member's shares, an ensemble's
     if ref.shares:
-        share = dict(zip(names, energy_shares(model, scene, names).tolist()))
-        if ref.member_shares and getattr(model, "members", 1) == len(ref.member_shares):
-            per_member = member_shares(model, scene, names)
+        judged = bool(ref.member_shares) and getattr(model, "members", 1) == len(ref.member_shares or [])
+        rows = _shares(model, scene, names, members=judged)
+        share = dict(zip(names, rows[0].tolist()))
+        per_member = rows[1:] if judged else None
     else:  # a checkpoint from before the shares were stored: the scene's energy per object
         e = energy_per_object(model, [scene])[0]
         ref_e = np.asarray(ref.energies)

@@ -23,9 +23,10 @@ from itertools import permutations
 
 import numpy as np
 
-from ..exact import footprint_extent, footprints_overlap
+from ..exact import footprints_overlap
 from ..scene import Scene, SceneError, SceneObject
 from .relations import ALIGNED, BETWEEN, FACING, HALF, RELATIONS, SIDES, TOL
+from .zoo.common import inside_bounds
 
 __all__ = ["PROBLEM_RELATIONS", "RelationProblem", "relation_problem", "relation_problems"]
 
@@ -80,11 +81,8 @@ class RelationProblem:
         scene = Scene(objs, self.scene.bounds)
         if not all(RELATIONS[rel].check(scene, names, tol=tol) for rel, names in self.relations):
             return False
-        (x0, y0), (x1, y1) = self.scene.bounds
-        for o in objs:
-            a, b, c, d = footprint_extent(o, o.pose)  # type: ignore[arg-type]
-            if a < x0 - tol or b < y0 - tol or c > x1 + tol or d > y1 + tol:
-                return False
+        if not inside_bounds(objs, self.scene.bounds, margin=-tol):
+            return False
         return not any(
             footprints_overlap(objs[i], objs[i].pose, objs[j], objs[j].pose)  # type: ignore[arg-type]
             for i in range(len(objs))
@@ -127,12 +125,6 @@ def _planted(rng: np.random.Generator, placed: list[tuple[float, float, float]])
     return p
 
 
-def _fits(obj: SceneObject, pose: Sequence[float], bounds: tuple) -> bool:
-    (x0, y0), (x1, y1) = bounds
-    a, b, c, d = footprint_extent(obj, pose)
-    return a >= x0 and b >= y0 and c <= x1 and d <= y1
-
-
 def _arrange(rng: np.random.Generator, objs: list[SceneObject], bounds: tuple) -> list[SceneObject] | None:
     """The objects placed one by one, apart and inside ``bounds`` (planted with chance :data:`PLANT`);
     ``None`` when one finds no place in :data:`MAX_TRIES` draws."""
@@ -145,8 +137,12 @@ def _arrange(rng: np.random.Generator, objs: list[SceneObject], bounds: tuple) -
             else:
                 p = np.array([*rng.uniform((-HALF[0], -HALF[1]), HALF), rng.uniform(-math.pi, math.pi)])
             pose = (float(p[0]), float(p[1]), float(math.atan2(math.sin(p[2]), math.cos(p[2]))))
-            if _fits(o, pose, bounds) and not any(footprints_overlap(o, pose, d, d.pose) for d in done):  # type: ignore[arg-type]
-                done.append(replace(o, pose=pose))
+            placed = replace(o, pose=pose)
+            if inside_bounds([placed], bounds) and not any(
+                footprints_overlap(o, pose, d, d.pose)  # type: ignore[arg-type]
+                for d in done
+            ):
+                done.append(placed)
                 break
         else:
             return None

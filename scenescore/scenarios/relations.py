@@ -38,6 +38,7 @@ import numpy as np
 from ..costs.relation import ROLE_COLOURS, compass
 from ..exact import footprint_extent, footprints_overlap, shapely_core
 from ..scene import Scene, SceneError, SceneObject
+from .zoo.common import inside_bounds
 
 __all__ = [
     "RELATIONS",
@@ -306,12 +307,8 @@ class RelationScenario:
         return sizes, shapes
 
     def _valid(self, scene: Scene) -> bool:
-        (x0, y0), (x1, y1) = scene.bounds
-        for o in scene.objects:  # every footprint inside the table at its pose
-            assert o.pose is not None  # drawn here
-            lo_x, lo_y, hi_x, hi_y = footprint_extent(o, o.pose)
-            if lo_x < x0 or lo_y < y0 or hi_x > x1 or hi_y > y1:
-                return False
+        if not inside_bounds(scene.objects, scene.bounds):  # every footprint inside, at its pose
+            return False
         names = self.roles
         if not self.kind.overlaps:
             pairs = [(names[i], names[j]) for i in range(len(names)) for j in range(i + 1, len(names))]
