@@ -1,6 +1,7 @@
 """Rooms: training and placement time against the number of objects, dense graph and local graph.
 
     python benchmarks/bench_rooms.py [--sizes 4,10,20,40,60,100] [--iterations 12] [--full]
+    python benchmarks/bench_rooms.py --place-with classroom.ckpt
 
 Each size ``N`` is a zoo-classroom (``ClassroomScenario``) of ``N / 2`` desks, each with its chair, the
 room grown with the desks so that their density stays a classroom's. For each size and graph:
@@ -18,7 +19,8 @@ wheel for this torch) of the same messages.
 
 One thread (``thread_budget(1)``), as a laptop's worker. ``--full`` adds the issue's measure: full
 default training on 48 scenes of 10 objects and of 40 (the ratio of the two), and placing three chairs
-in a 40-object scene with that model.
+in a 40-object scene with that model. ``--place-with CKPT`` times only that placement, in five
+40-object scenes, with a model you trained (``scenescore train`` on zoo-classroom data, say).
 """
 
 from __future__ import annotations
@@ -133,12 +135,31 @@ def full() -> None:
     print(f"| one thread | {times[10]:.0f} | {times[40]:.0f} | {times[40] / times[10]:.2f} | {placing:.2f} |")
 
 
+def placing_only(model: ss.models.ScoreModel, scenes: int = 5) -> None:
+    """``place`` of 3 chairs in each of ``scenes`` 40-object classroom scenes with ``model``, as a user
+    runs it (the default thread budget), after one warm-up placement."""
+    rooms = classroom(40).generate(scenes + 1, 1)
+    place_seconds(model, rooms[0])
+    times = sorted(place_seconds(model, s) for s in rooms[1:])
+    print("| place 3 of 40 objects | min (s) | median (s) | max (s) |")
+    print("|---|---:|---:|---:|")
+    print(f"| {scenes} scenes | {times[0]:.2f} | {times[len(times) // 2]:.2f} | {times[-1]:.2f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="4,10,20,40,60,100", help="objects per scene, comma-separated")
     ap.add_argument("--iterations", type=int, default=12, help="timed training iterations per size")
     ap.add_argument("--full", action="store_true", help="also the full training of 10 and 40 objects")
+    ap.add_argument(
+        "--place-with",
+        metavar="CKPT",
+        help="only time placing 3 chairs of 40-object scenes with this trained classroom model (5 scenes)",
+    )
     args = ap.parse_args()
+    if args.place_with:
+        placing_only(ss.models.load(args.place_with))
+        return
     with thread_budget(1):
         sweep([int(s) for s in args.sizes.split(",")], args.iterations)
         aggregation()

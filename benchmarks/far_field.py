@@ -24,7 +24,7 @@ import torch
 import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.learn import RAW_EDGES, TrainConfig, train
-from scenescore.models.trust import BOUND_TOL, touching_bound
+from scenescore.models.layout import BOUND_TOL, touching_bound
 from scenescore.placement import place_many, placement_problem
 
 CONFIGS = {

@@ -5,7 +5,7 @@ learned energy with the unknown objects movable and solves it with the ``langevi
 placement defaults (:data:`PLACE`), on the threads :func:`~scenescore.threads.threads_for` chooses for its
 particles: one for the default 64, the run's budget (``--threads``, :func:`~scenescore.thread_budget`) for
 large batches. Several unknown objects start from :func:`in_turn`'s particles, found one object at a
-time, and then move together in the chain.
+time and then moved in pairs, and then move together in the chain.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import os
 from dataclasses import dataclass, field, replace
 from typing import Protocol, cast
 
+import numpy as np
 import torch
 from torch import Tensor
 from tqdm.auto import tqdm
@@ -27,7 +28,7 @@ from .learn import TrainConfig, train
 from .models import ScoreModel
 from .problem import FEASIBILITY_TOL, Problem
 from .sampling import PLACEMENT, screen
-from .scene import Scene, SceneError
+from .scene import Scene, SceneError, wrap_angle
 from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
 from .threads import torch_threads
@@ -59,6 +60,8 @@ PLACE = LangevinOptions(particles=64, candidates=2048, proposals=0.5, chain=PLAC
 #: for 5 of zoo-pcb's 16 test scenes (``benchmarks/zoo_configs.py``'s "misses: search")
 CANDIDATE_DENSITY = 2.0
 MAX_COVERING = 32_768  # the most candidates that covering the bounds asks for
+#: a pair move (:func:`_in_pairs`) draws an object beside one of this many known objects nearest to it
+NEAR_ANCHORS = 8
 #: the weight of non-overlap in placement: energy per length scale of penetration (free of units)
 OVERLAP_WEIGHT = 10.0
 
@@ -118,15 +121,21 @@ def placement_problem(model: ScoreModel, scene: Scene, energy_only: bool = False
 def in_turn(
     model: ScoreModel, scene: Scene, options: LangevinOptions, seed: int = 0, energy_only: bool = False
 ) -> Tensor:
-    """Starting particles for placing several unknown objects, found one object at a time: the first
-    unknown object is screened alone (the later ones left out of the scene), its best ``particles``
-    draws kept; each next one is drawn beside every kept particle and screened with the ones before it
-    in place (a beam over the objects in the scene's order). ``(particles, N, 3)`` float64 for
-    :func:`placement_problem` of ``scene``. Screened jointly, a draw would have to put every object on
-    a free slot at once; in turn, each stage screens one object's slot, so the search grows with the
-    objects to place, not with the product of their slots."""
+    """Starting particles for placing several unknown objects, found one object at a time and then moved
+    in pairs; ``(particles, N, 3)`` float64 for :func:`placement_problem` of ``scene``.
+
+    The stages are a beam over the objects in the scene's order: the first unknown object is screened
+    alone (the later ones left out of the scene), its best ``particles`` draws kept; each next one is
+    drawn beside every kept particle and screened with the ones before it in place. Screened jointly, a
+    draw would have to put every object on a free slot at once; in turn, each stage screens one object's
+    slot, so the search grows with the objects to place, not with the product of their slots. Each
+    object is screened beside the next one to place (:func:`_partner`). The stages then leave the
+    particles to :func:`_in_pairs`, which moves one or two objects at a time in the whole scene. Each
+    stage and each object's moves draw half the candidates, so the two phases cost about what the
+    stages alone cost with all the candidates."""
     names = scene.unknown
-    keep, draws_per_stage = options.particles, max(options.candidates, options.particles)
+    keep = options.particles
+    draws = max(options.candidates // 2, keep)
     gen = generator(seed, model.device)
     beam: Tensor | None = None  # (particles, k, 3): the first k unknown objects' poses in each particle
     for k in range(len(names)):
@@ -134,19 +143,77 @@ def in_turn(
         later = set(names[k + 2 :] if ahead else names[k + 1 :])
         sub = replace(scene, objects=[o for o in scene.objects if o.name not in later])
         problem = placement_problem(model, sub, energy_only)
-        draws = problem.initial(draws_per_stage, gen, proposals=options.proposals)
+        x = problem.initial(draws, gen, proposals=options.proposals)
         if beam is not None:
-            rows = torch.arange(len(draws), device=draws.device) % len(beam)
-            draws[:, [sub.index(m) for m in names[:k]]] = beam[rows]
+            rows = torch.arange(len(x), device=x.device) % len(beam)
+            x[:, [sub.index(m) for m in names[:k]]] = beam[rows]
         if ahead:
-            _partner(model, sub, draws, sub.index(names[k]), sub.index(names[k + 1]), gen)
-        best = screen(problem.cost, draws, keep)
+            _partner(model, sub, x, sub.index(names[k]), sub.index(names[k + 1]), gen)
+        best = screen(problem.cost, x, keep)
         beam = best[:, [sub.index(m) for m in names[: k + 1]]]
     full = placement_problem(model, scene, energy_only)
     start = full.base_poses()[None].repeat(keep, 1, 1)
     assert beam is not None
     start[:, [scene.index(m) for m in names]] = beam
+    return _in_pairs(model, full, start, draws, options.proposals, gen)
+
+
+def _in_pairs(
+    model: ScoreModel, problem: Problem, start: Tensor, draws: int, proposals: float, gen: torch.Generator
+) -> Tensor:
+    """:func:`in_turn`'s particles ``start`` improved by moves of one or two unknown objects in the whole
+    scene: for each of ``problem``'s movable objects ``a`` in the scene's order, with ``b`` the next one
+    (the last's: the first), ``draws`` rows copy the particles (cycled) and move ``a``: in the first half beside a known object
+    near where the row has it (:func:`_near_draw`) with ``b`` put beside it where the data puts its kind
+    (:func:`_partner`), in the next quarter beside a near object alone, in the last quarter anywhere
+    (:meth:`~scenescore.problem.Problem.initial`); the best ``len(start)`` of the particles and the
+    rows are kept.
+
+    The stages judge scenes with the later objects left out, which the data never shows (a table with an
+    empty seat), and their choices can trap every particle: in zoo-cafe, with two chairs missing at one
+    table and one at another, the stages put two chairs beside the table and off its seats, where moving
+    either alone onto a seat scores worse and moving both scores best. A move beside a near object finds
+    the seat next to where a chair stands; a draw beside any object of the room rarely does."""
+    scene = problem.scene
+    idx = [scene.index(n) for n in problem.movable]
+    half, near = draws // 2, (3 * draws) // 4
+    for i, a in enumerate(idx):
+        b = idx[(i + 1) % len(idx)]
+        x = start[torch.arange(draws, device=start.device) % len(start)].clone()
+        _near_draw(model, problem, x[:near], a, gen)
+        _partner(model, scene, x[: 2 * half], a, b, gen)
+        x[near:, a] = problem.initial(draws - near, gen, proposals=proposals)[:, a]
+        start = screen(problem.cost, torch.cat([start, x]), len(start))
     return start
+
+
+def _near_draw(model: ScoreModel, problem: Problem, x: Tensor, a: int, gen: torch.Generator) -> None:
+    """Put object ``a`` of each row of ``x`` at a pose the data has beside one of the
+    :data:`NEAR_ANCHORS` known objects nearest to where the row has it (one drawn per row), its centre
+    kept inside the bounds; in place. Rows stay as they are without relations for ``a``."""
+    ref, scene = model.trust, problem.scene
+    known = [j for j, o in enumerate(scene.objects) if o.pose is not None]
+    if ref is None or not known:
+        return
+    idx, rel = ref.anchored(scene.objects[a].category, [scene.objects[j].category for j in known])
+    if not len(idx):
+        return
+    dev = x.device
+    counts = torch.as_tensor(np.bincount(idx, minlength=len(known)), device=dev)  # relations per anchor
+    first = torch.cumsum(counts, 0) - counts  # each anchor's first row of ``rel`` (rows grouped by anchor)
+    usable = torch.nonzero(counts).squeeze(1)
+    at = torch.as_tensor(known, device=dev)[usable]  # the anchors' indices in the scene
+    k = min(NEAR_ANCHORS, len(usable))
+    nearest = torch.cdist(x[:, a, :2], x[0, at, :2]).topk(k, largest=False).indices  # (B, k)
+    rows = torch.arange(len(x), device=dev)
+    u = draw("rand", (len(x),), gen, dev, torch.float64)
+    pick = usable[nearest[rows, (u * k).long().clamp(max=k - 1)]]  # (B,) an anchor per row
+    v = draw("rand", (len(x),), gen, dev, torch.float64)
+    r = first[pick] + (v * counts[pick]).long().clamp(max=counts[pick] - 1)
+    rel_t = torch.as_tensor(rel, dtype=x.dtype, device=dev)[r]
+    y = compose_poses(x[rows, torch.as_tensor(known, device=dev)[pick]], rel_t)
+    x[:, a, :2] = torch.minimum(torch.maximum(y[:, :2], problem.lo), problem.hi)
+    x[:, a, 2] = wrap_angle(y[:, 2])
 
 
 def _partner(model: ScoreModel, scene: Scene, draws: Tensor, i: int, j: int, gen: torch.Generator) -> None:
@@ -237,9 +304,9 @@ def place(
     This is ``ss.solve(placement_problem(model, scene), LangevinSolver(opts), seed=seed)`` with ``opts =
     options or covering(PLACE, model, [scene])``: placing and solving give the same answer for the same
     model, seed and options (for several unknown objects, with ``init=in_turn(model, scene, opts,
-    seed)`` and :func:`refining` options: descent from particles found one object at a time). By default the
-    placed objects keep off the others (:func:`non_overlap`); ``energy_only`` places by the learned
-    energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
+    seed)`` and :func:`refining` options: descent from particles found one object at a time and moved in
+    pairs). By default the placed objects keep off the others (:func:`non_overlap`); ``energy_only``
+    places by the learned energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
     """
     if not scene.unknown:
         return scene.copy()

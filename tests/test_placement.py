@@ -9,11 +9,15 @@ import pytest
 import torch
 
 import scenescore as ss
+from scenescore.costs import CostFn
 from scenescore.encoders import FootprintEncoder
+from scenescore.geometry import relative_poses
 from scenescore.models import ScoreModel
-from scenescore.models.trust import overlapping_categories, reference
+from scenescore.models.layout import overlapping_categories
+from scenescore.models.trust import reference
 from scenescore.placement import (
     PLACE,
+    _in_pairs,
     in_turn,
     non_overlap,
     overlapping,
@@ -22,6 +26,7 @@ from scenescore.placement import (
     placement_problem,
     refining,
 )
+from scenescore.problem import Problem
 from scenescore.solvers.langevin import LangevinSolver
 
 pytestmark = pytest.mark.float_order
@@ -149,9 +154,40 @@ def test_covering_screens_more_candidates_where_the_objects_are_small_for_the_bo
     assert a["fork_0"].pose == b["fork_0"].pose
 
 
+def test_pair_moves_leave_a_trap_that_no_single_move_leaves():
+    """A cost that is lowest with a fork at its pose and a knife beside it as in the data, and higher with
+    one of the two than with neither: from particles with both elsewhere, no move of one object improves,
+    and ``_in_pairs`` (the fork drawn anew, the knife beside it as the data puts it) finds the minimum."""
+    model, scenes = _model(), _scenes()
+    model.info.trust = reference(model, scenes)
+    truth = scenes[0]
+    scene = truth.without("fork_0").without("knife_0")
+    ia, ib = scene.index("fork_0"), scene.index("knife_0")
+    fork, knife = (torch.tensor(truth[n].pose, dtype=torch.float64) for n in ("fork_0", "knife_0"))
+    beside = relative_poses(fork, knife)[:2]  # the knife's place in the fork's frame
+
+    def trap(x: torch.Tensor) -> torch.Tensor:
+        near_a = torch.exp(-((x[:, ia, :2] - fork[:2]) ** 2).sum(-1) / 0.3**2)
+        rel = relative_poses(x[:, ia], x[:, ib])[:, :2]
+        near_b = torch.exp(-((rel - beside) ** 2).sum(-1) / 0.05**2)
+        return 0.5 + near_a + near_b - 2.5 * near_a * near_b  # both 0, one 1.5, neither 0.5
+
+    problem = Problem(scene, CostFn(trap), movable=scene.unknown)
+    start = problem.base_poses()[None].repeat(8, 1, 1)
+    start[:, [ia, ib]] = torch.tensor([[0.5, -0.5, 0.0], [-0.5, -0.5, 0.0]], dtype=torch.float64)
+    assert float(trap(start).min()) == pytest.approx(0.5, abs=1e-4)
+    one = start.clone()
+    one[:, ia] = fork  # the fork alone at its pose: worse than neither
+    assert float(trap(one).min()) > 1.4
+    got = _in_pairs(model, problem, start, 8192, 0.5, torch.Generator().manual_seed(0))
+    assert got.shape == start.shape and float(trap(got).min()) < 0.1
+    known = [scene.index(o.name) for o in scene.objects if o.pose is not None]
+    assert torch.equal(got[:, known], start[:, known])
+
+
 def test_several_unknown_objects_start_from_particles_found_one_at_a_time():
     """The unknown objects are screened one at a time, each beside the next (the ones after it left
-    out); ``place`` is the descent from those particles, the same as ``ss.solve`` with
+    out), then moved in pairs; ``place`` is the descent from those particles, the same as ``ss.solve`` with
     ``init=in_turn(...)`` and ``refining`` options."""
     model = _model()
     scene = _scenes()[0].without("fork_0").without("knife_1")

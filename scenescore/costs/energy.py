@@ -37,7 +37,7 @@ class LearnedEnergy(Cost, Guide):
     """
 
     needs_scene = True
-    doubt_note = "put an object where its data has none (at a bound, or far from the rest)"
+    doubt_note = "put an object where its data has none (at a bound, far from the rest, or from a category)"
 
     def __init__(self, model: ScoreModel, name: str = "energy", objects: Sequence[str] | None = None):
         if not hasattr(model, "energy_fn"):

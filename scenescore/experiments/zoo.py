@@ -28,7 +28,8 @@ from tqdm.auto import tqdm
 from ..evaluation import MissingCase, assignment, case_errors
 from ..learn import TrainConfig, split_validation, train
 from ..models import ScoreModel
-from ..models.trust import BOUND_TOL, energy_per_object, touching_bound
+from ..models.layout import BOUND_TOL, touching_bound
+from ..models.trust import energy_per_object
 from ..placement import covering, place_many
 from ..scenarios import get
 from ..scenarios.zoo import ROOMS, ZOO

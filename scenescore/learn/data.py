@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..models.trust import touching_bound
+from ..models.layout import touching_bound
 from ..scene import Scene, SceneError
 
 __all__ = [

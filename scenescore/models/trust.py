@@ -3,8 +3,9 @@
 Training stores a :class:`TrustReference` in the checkpoint: each object's share of the energy of the
 reference scenes (held-out ones when there are any, else the training scenes; :func:`energy_shares`),
 their per-object energies ``E / N``, and what the data's geometry looks like in its own length scale
-(how far each category lies from its nearest neighbour, how near each category comes to the bounds,
-which feature vectors occur). :func:`assess` gives every placed object a confidence (the fraction of its
+(how far each category lies from its nearest neighbour and from the nearest object of each other
+category, how near each category comes to the bounds, which feature vectors occur;
+:mod:`scenescore.models.layout`). :func:`assess` gives every placed object a confidence (the fraction of its
 category's reference shares at or above its own) and flags it,
 with the reason, when
 
@@ -15,6 +16,8 @@ with the reason, when
   beyond that of every object of its category in the reference scenes by that member (``members``: the
   members disagree; the confidence is then the lowest member's),
 - the object is farther from every other object than any object of its category in the data (``far``),
+  or farther from every object of some category (``apart``: a chair from every table;
+  :func:`~scenescore.models.layout.apart_limits`),
 - it is pinned at a bound that no object of its category comes near in the data (within
   :data:`NEAR_BOUND` length scales: ``bound``),
 - its category's features are far from every feature seen in training (``novel``),
@@ -36,46 +39,41 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..exact import collides, footprint_extents
-from ..geometry import relative_poses
-from ..scene import Scene, SceneObject, wrap_angle
+from ..scene import Scene
 from ..units import length_unit
+from .layout import (
+    BOUND_TOL,
+    OVERLAP_TOL,
+    apart_limits,
+    bound_gap,
+    bounds_touched,
+    evenly,
+    nearest_distances,
+    overlapping_categories,
+    relations,
+    touching_bound,
+)
 
 __all__ = [
     "TrustReference",
     "Assessment",
     "reference",
     "assess",
-    "touching_bound",
-    "bound_gap",
     "NEAR_BOUND",
     "outside_data",
     "energy_per_object",
     "energy_shares",
     "member_shares",
-    "overlapping_categories",
-    "BOUND_TOL",
-    "relations",
-    "RELATIONS_PER_PAIR",
     "CAVEAT",
 ]
 
-BOUND_TOL = 0.05  # length scales: a footprint this close to a bound touches it
 # length scales: a category whose data come this close to a bound may be pinned there (a nightstand
 # 1.6 cm from the wall in a bedroom whose length scale is 27 cm may stand against it; a coffee table
 # a metre from every wall may not)
 NEAR_BOUND = 0.5
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
-OVERLAP_TOL = 0.1  # length scales of penetration before two objects of the data count as overlapping
 MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
-RELATIONS_PER_PAIR = 32  # relative poses kept per (category, anchor category), evenly subsampled
-MAX_RELATIONS = 4096  # relative poses kept in all (fewer per pair when the pairs are many)
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
-#: in a scene of more than ALL_PAIRS objects an object's relations are kept to its NEAR_RELATIONS nearest
-#: objects only: in a room, a chair's pose in the frame of a table across the room says nothing of where
-#: chairs go, and among every pair's relations kept, few were to the chair's own table
-ALL_PAIRS = 32
-NEAR_RELATIONS = 8
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
 CAVEAT = "validation: "  # how a flag from the model's held-out evaluation begins (not out of distribution)
 
@@ -105,6 +103,9 @@ class TrustReference:
     shares: dict[str, list[float]] | None = None
     # an ensemble's: each member's ``shares`` (by its own energy); None for one network
     member_shares: list[dict[str, list[float]]] | None = None
+    # category -> other category -> the farthest any object of the category stands from the nearest object
+    # of the other in a scene holding both (length scales; :func:`apart_limits`); None in older checkpoints
+    apart: dict[str, dict[str, float]] | None = None
 
     def may_touch_bounds(self, category: str) -> bool:
         """Whether an object of ``category`` pinned at a bound is where the data has them: some object of
@@ -134,9 +135,9 @@ class TrustReference:
             for by_anchor in table.values():
                 for a, rows in by_anchor.items():
                     own.setdefault(a, []).extend(rows)
-            own = {a: _evenly(rows, POOLED_RELATIONS) for a, rows in sorted(own.items())}
+            own = {a: evenly(rows, POOLED_RELATIONS) for a, rows in sorted(own.items())}
             if own and not any(a in own for a in anchors):
-                rows = _evenly([r for a in sorted(own) for r in own[a]], POOLED_RELATIONS)
+                rows = evenly([r for a in sorted(own) for r in own[a]], POOLED_RELATIONS)
                 own = {a: rows for a in anchors}
         idx = [j for j, a in enumerate(anchors) for _ in own.get(a, [])]
         rel = [r for a in anchors for r in own.get(a, [])]
@@ -202,6 +203,11 @@ class TrustReference:
             "bound_gaps": ref.bound_gaps is None
             or (isinstance(ref.bound_gaps, dict) and all(map(finite, ref.bound_gaps.values()))),
             "shares": ref.shares is None or share_table(ref.shares),
+            "apart": ref.apart is None
+            or (
+                isinstance(ref.apart, dict)
+                and all(isinstance(t, dict) and all(map(finite, t.values())) for t in ref.apart.values())
+            ),
             "member_shares": ref.member_shares is None
             or (isinstance(ref.member_shares, list) and all(map(share_table, ref.member_shares))),
             "relations": ref.relations is None
@@ -255,111 +261,41 @@ class Assessment:
         return {"confidence": round(self.confidence, 4), "flags": list(self.flags)}
 
 
-def _nearest(poses: np.ndarray) -> np.ndarray:
-    """Each centre's distance to the nearest other centre ``(N,)`` (inf for a lone object)."""
-    d = np.linalg.norm(poses[:, None, :2] - poses[None, :, :2], axis=-1)
-    np.fill_diagonal(d, np.inf)
-    return d.min(axis=1)
-
-
-def _side_gaps(obj: SceneObject, poses: np.ndarray, bounds: Any) -> np.ndarray:
-    """How far ``obj``'s footprint keeps from each side of ``bounds`` (``x >= x0``, ``y >= y0``, ``x <= x1``,
-    ``y <= y1``) at each pose of ``poses (B, 3)``: ``(B, 4)`` metres, negative beyond the side."""
-    lo, hi = footprint_extents(obj, poses)
-    (x0, y0), (x1, y1) = bounds
-    return np.stack([lo[:, 0] - x0, lo[:, 1] - y0, x1 - hi[:, 0], y1 - hi[:, 1]], 1)
-
-
-def _bounds_touched(
-    obj: SceneObject, poses: np.ndarray, bounds: Any, tol: float
-) -> tuple[list[str], np.ndarray]:
-    """The bounds' four sides by name (``"x >= -0.6"``, ...) and which of them ``obj``'s footprint touches
-    at each pose of ``poses (B, 3)``: ``(B, 4)`` bool."""
-    (x0, y0), (x1, y1) = bounds
-    names = [f"x >= {x0:g}", f"y >= {y0:g}", f"x <= {x1:g}", f"y <= {y1:g}"]
-    return names, _side_gaps(obj, poses, bounds) <= tol
-
-
-def bound_gap(obj: SceneObject, pose: Sequence[float], bounds: Any) -> float:
-    """The smallest distance from ``obj``'s footprint at ``pose`` to a side of ``bounds`` (metres)."""
-    return float(_side_gaps(obj, np.asarray(pose, dtype=float)[None, :3], bounds).min())
-
-
-def touching_bound(obj: SceneObject, pose: Sequence[float], bounds: Any, tol: float) -> str | None:
-    """The bound the placed footprint touches (``"x >= -0.6"``), or None."""
-    names, hit = _bounds_touched(obj, np.asarray(pose, dtype=float)[None, :3], bounds, tol)
-    return next((n for n, h in zip(names, hit[0]) if h), None)
+def _apart(
+    ref: TrustReference, scene: Scene, i: int, poses: np.ndarray
+) -> list[tuple[str, np.ndarray, float]]:
+    """Object ``i`` of ``scene`` at each row of ``poses (B, N, 3)``: ``(category, distance (B,), limit)``
+    for each category of :attr:`TrustReference.apart` beside its own that the scene holds, the distance
+    to the nearest object of it and the data's farthest, in metres."""
+    table = (ref.apart or {}).get(scene.objects[i].category, {})
+    cats = np.array([o.category for o in scene.objects])
+    out = []
+    for c, limit in sorted(table.items()):
+        others = [j for j in np.flatnonzero(cats == c).tolist() if j != i]
+        if others and limit > 0:
+            d = np.linalg.norm(poses[:, others, :2] - poses[:, i : i + 1, :2], axis=-1).min(axis=1)
+            out.append((c, d, limit * ref.length_scale))
+    return out
 
 
 def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses: np.ndarray) -> np.ndarray:
     """Rows of ``poses (B, N, 3)`` that put an object of ``names`` where the data never had one of its
-    category: pinned at a bound that none comes near, or farther from every other object than any
-    (:func:`assess`'s ``bound`` and ``far`` flags, for a whole population): ``(B,)`` bool."""
+    category: pinned at a bound that none comes near, farther from every other object than any, or farther
+    from every object of some category than any (:func:`assess`'s ``bound``, ``far`` and ``apart`` flags,
+    for a whole population): ``(B,)`` bool."""
     out = np.zeros(len(poses), dtype=bool)
     tol = BOUND_TOL * ref.length_scale
     for name in names:
         i = scene.index(name)
         o = scene.objects[i]
         if not ref.may_touch_bounds(o.category):
-            out |= _bounds_touched(o, poses[:, i], scene.bounds, tol)[1].any(axis=1)
+            out |= bounds_touched(o, poses[:, i], scene.bounds, tol)[1].any(axis=1)
         far = ref.nearest.get(o.category, ref.nearest_any)
         if far > 0 and len(scene) > 1:
             d = np.linalg.norm(np.delete(poses[:, :, :2], i, axis=1) - poses[:, i : i + 1, :2], axis=-1)
             out |= d.min(axis=1) / ref.length_scale > FAR_FACTOR * far
-    return out
-
-
-def overlapping_categories(scenes: Sequence[Scene], tol: float) -> list[list[str]]:
-    """Sorted category pairs ``[a, b]`` whose footprints overlap by more than ``tol`` metres of
-    penetration in some scene (exact, shapely; pairs whose bounding circles are apart are skipped)."""
-    found: set[tuple[str, str]] = set()
-    for s in scenes:
-        p = s.poses()
-        reach = np.array([float(np.hypot(*o.size)) / 2 for o in s.objects])
-        d = np.linalg.norm(p[:, None, :2] - p[None, :, :2], axis=-1)
-        near = np.argwhere(np.triu(d < reach[:, None] + reach[None, :] - tol, k=1))
-        for i, j in near:
-            a, b = s.objects[i], s.objects[j]
-            pair = (min(a.category, b.category), max(a.category, b.category))
-            if pair not in found and collides(a, p[i], b, p[j], tol):
-                found.add(pair)
-    return [list(pr) for pr in sorted(found)]
-
-
-def _evenly(rows: list[Any], keep: int) -> list[Any]:
-    """At most ``keep`` of ``rows``, evenly spaced (all of them when there are no more)."""
-    if len(rows) <= keep:
-        return list(rows)
-    return [rows[int(k)] for k in np.linspace(0, len(rows) - 1, keep).round()]
-
-
-def relations(scenes: Sequence[Scene], length: float) -> dict[str, dict[str, list[list[float]]]]:
-    """Each category's poses relative to each other category's in ``scenes``: ``{category: {anchor
-    category: [[x, y, heading], ...]}}``, the pose of every object in the frame of every other object
-    of the scene (x, y divided by ``length``, the heading wrapped to [-pi, pi)); in a scene of more than
-    :data:`ALL_PAIRS` objects, in the frames of its :data:`NEAR_RELATIONS` nearest only. At most
-    :data:`RELATIONS_PER_PAIR` per pair evenly subsampled, fewer when the pairs are many (at most
-    :data:`MAX_RELATIONS` in all)."""
-    found: dict[tuple[str, str], list[list[float]]] = {}
-    for s in scenes:
-        p = torch.as_tensor(s.poses(), dtype=torch.float64)
-        rel = relative_poses(p[:, None], p[None, :])  # (anchor, object, 3)
-        rel[..., :2] /= length
-        rel[..., 2] = wrap_angle(rel[..., 2])
-        rows = rel.tolist()
-        pairs = torch.ones(len(s), len(s), dtype=torch.bool)  # (anchor, object)
-        if len(s) > ALL_PAIRS:  # each object's nearest, by centre distance (itself first)
-            near = torch.cdist(p[:, :2], p[:, :2]).argsort(dim=0)[1 : NEAR_RELATIONS + 1]
-            pairs = torch.zeros_like(pairs).scatter_(0, near, True)
-        kept = pairs.tolist()
-        for a, anchor in enumerate(s.objects):
-            for o, obj in enumerate(s.objects):
-                if a != o and kept[a][o]:
-                    found.setdefault((obj.category, anchor.category), []).append(rows[a][o])
-    keep = max(1, min(RELATIONS_PER_PAIR, MAX_RELATIONS // max(1, len(found))))
-    out: dict[str, dict[str, list[list[float]]]] = {}
-    for (cat, around), rows in sorted(found.items()):
-        out.setdefault(cat, {})[around] = _evenly(rows, keep)
+        for _, d, limit in _apart(ref, scene, i, poses):
+            out |= d > FAR_FACTOR * limit
     return out
 
 
@@ -419,7 +355,7 @@ def reference(
     gaps: dict[str, float] = {}  # category -> its smallest gap to a bound in the data (metres)
     for s in scenes:
         p = s.poses()
-        nn = _nearest(p) / length
+        nn = nearest_distances(p) / length
         for o, d, pose in zip(s.objects, nn, p):
             if math.isfinite(d):
                 nearest[o.category] = max(nearest.get(o.category, 0.0), float(d))
@@ -434,7 +370,7 @@ def reference(
         for table, row in zip(tables, _shares(model, s, None, members=True), strict=True):
             for o, v in zip(s.objects, row):
                 table.setdefault(o.category, []).append(float(v))
-    kept = [{c: _evenly(sorted(v), MAX_SHARES) for c, v in sorted(t.items())} for t in tables]
+    kept = [{c: evenly(sorted(v), MAX_SHARES) for c, v in sorted(t.items())} for t in tables]
     return TrustReference(
         energies=sorted(energy_per_object(model, held_out or train)),
         length_scale=length,
@@ -448,6 +384,7 @@ def reference(
         bound_gaps={c: max(0.0, g) / length for c, g in gaps.items()},
         shares=kept[0],
         member_shares=kept[1:] if size > 1 else None,
+        apart=apart_limits(scenes, length),
     )
 
 
@@ -468,7 +405,7 @@ def assess(
         e = energy_per_object(model, [scene])[0]
         ref_e = np.asarray(ref.energies)
     p = scene.poses()
-    nn = _nearest(p) / ref.length_scale
+    nn = nearest_distances(p) / ref.length_scale
     if feats is None:
         with torch.no_grad():
             feats = model.tensors([scene]).feats[0]
@@ -515,6 +452,12 @@ def assess(
                 f"far: {d:.3g} {unit} from its nearest neighbour; no {o.category} in the data is more than "
                 f"{lim:.3g} {unit} away"
             )
+        for c, d, limit in _apart(ref, scene, i, p[None]):
+            if d[0] > FAR_FACTOR * limit:
+                flags.append(
+                    f"apart: {d[0]:.3g} {unit} from the nearest {c}; no {o.category} in the data is more "
+                    f"than {limit:.3g} {unit} from one"
+                )
         side = touching_bound(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
         if side and not ref.may_touch_bounds(o.category):
             flags.append(f"bound: pinned at the bound {side}, {ref.bound_reason(o.category, unit)}")

@@ -71,7 +71,7 @@ class LangevinOptions:
     chain: LangevinConfig = SAMPLING
     # the answer: among the feasible particles (else all), those that no guiding term doubts first
     # (Problem.doubted; the learned energy: no object at a bound its category never comes near, or
-    # farther from the rest than any of its category), then by cost; placement's default (off for
+    # farther from the rest, or from every object of some category, than any of its category), then by cost; placement's default (off for
     # solve: a user's own costs may well ask for a wall)
     trusted_first: bool = False
 

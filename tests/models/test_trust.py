@@ -93,9 +93,9 @@ def test_energy_beyond_the_reference_is_flagged(dining):
     assert np.isfinite(ref.energy_limit)
 
 
-def test_outside_data_agrees_with_the_bound_and_far_flags(dining):
-    """The batched check marks exactly the rows in which the one-pose check flags the object ``bound`` or
-    ``far``."""
+def test_outside_data_agrees_with_the_bound_far_and_apart_flags(dining):
+    """The batched check marks exactly the rows in which the one-pose check flags the object ``bound``,
+    ``far`` or ``apart``."""
     from scenescore.models.trust import outside_data
 
     model, _, te = dining
@@ -108,13 +108,54 @@ def test_outside_data_agrees_with_the_bound_and_far_flags(dining):
     poses[:, i, 2] = rng.uniform(-np.pi, np.pi, 48)
     rows = outside_data(model.trust, s, ["plate_0"], poses)
     flags = [assess(model.trust, model, s.with_poses(p), ["plate_0"])["plate_0"].flags for p in poses]
-    want = [any(f.startswith(("bound:", "far:")) for f in fl) for fl in flags]
+    want = [any(f.startswith(("bound:", "far:", "apart:")) for f in fl) for fl in flags]
     assert rows.tolist() == want and 0 < sum(want) < 48
     assert any(f.startswith("bound:") for fl in flags for f in fl)
     # a category that comes near a bound in the data, and may lie anywhere, is never outside it
     gaps = {**(model.trust.bound_gaps or {}), "plate": 0.0}
-    ref = replace(model.trust, bound_gaps=gaps, nearest={**model.trust.nearest, "plate": 1e9})
+    ref = replace(model.trust, bound_gaps=gaps, nearest={**model.trust.nearest, "plate": 1e9}, apart=None)
     assert not outside_data(ref, s, ["plate_0"], poses).any()
+
+
+def test_the_reference_stores_how_far_each_category_stands_from_the_nearest_of_each_other():
+    from scenescore.models.layout import apart_limits
+
+    near, far = _two_objects((0.5, -0.1, 0.0)), _two_objects((0.2, 0.5, 0.0))  # 0.3 and 0.6 m from a_0
+    lone = ss.Scene([ss.SceneObject("c_0", "c", (0.1, 0.1), (0.0, 0.0, 0.0))], near.bounds)
+    got = apart_limits(
+        [near, far, lone], length=0.1
+    )  # in length scales; a lone object stands apart from none
+    assert got.keys() == {"a", "b"} and got["a"].keys() == {"b"} and got["b"].keys() == {"a"}
+    assert got["a"]["b"] == pytest.approx(6.0) and got["b"]["a"] == pytest.approx(6.0)
+
+
+def test_an_object_farther_from_every_object_of_a_category_than_the_data_is_flagged(dining):
+    """A fork among the plates but farther from every knife than any fork in the data stands: flagged
+    ``apart`` (naming the knife, in metres), doubted by ``outside_data``, and the data's own scenes not."""
+    from scenescore.models.trust import length_unit, outside_data
+
+    model, tr, te = dining
+    ref = model.trust
+    assert ref.apart is not None and ref.apart["fork"]["knife"] > 0
+    s = te[0]
+    unit = length_unit(s)
+    knives = [o.pose for o in s.objects if o.category == "knife"]
+    poses = np.repeat(s.poses()[None], 2, axis=0)
+    lone = replace(ref, apart={"fork": {"knife": 0.1 * min(ref.apart["fork"]["knife"], 1.0)}})
+    got = assess(lone, model, s, ["fork_0"])["fork_0"].flags
+    d = min(float(np.hypot(s["fork_0"].pose[0] - k[0], s["fork_0"].pose[1] - k[1])) for k in knives)
+    assert [f for f in got if f.startswith("apart:")] == [
+        f"apart: {d:.3g} {unit} from the nearest knife; no fork in the data is more than "
+        f"{0.1 * min(ref.apart['fork']['knife'], 1.0) * ref.length_scale:.3g} {unit} from one"
+    ]
+    assert outside_data(lone, s, ["fork_0"], poses).all()
+    assert not outside_data(ref, s, ["fork_0"], poses).any()
+    assert not any(
+        f.startswith("apart:") for t in tr for a in assess(ref, model, t, t.names).values() for f in a.flags
+    )
+    bad = {**ref.to_dict(), "apart": {"fork": {"knife": float("inf")}}}
+    with pytest.raises(ValueError, match="apart"):
+        TrustReference.from_dict(bad)
 
 
 def test_an_objects_share_is_the_energy_it_adds_to_its_scene(dining):
@@ -148,7 +189,7 @@ def test_an_objects_share_is_the_energy_it_adds_to_its_scene(dining):
 
 
 def test_the_reference_stores_how_near_each_category_comes_to_the_bounds(dining):
-    from scenescore.models.trust import bound_gap
+    from scenescore.models.layout import bound_gap
 
     model, tr, te = dining
     length = model.config.length_scale
@@ -246,7 +287,7 @@ def _two_objects(pose_b: tuple[float, float, float], size: tuple[float, float] =
 
 def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
     from scenescore.geometry import relative_poses
-    from scenescore.models.trust import relations
+    from scenescore.models.layout import relations
     from scenescore.scene import wrap_angle
 
     s = _two_objects((0.5, 0.3, -2.9))
@@ -262,7 +303,7 @@ def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
 def test_relations_in_a_room_are_to_each_objects_nearest_only():
     """A scene of more than ALL_PAIRS objects keeps each object's pose in the frames of its
     NEAR_RELATIONS nearest objects only; a smaller scene keeps every pair."""
-    from scenescore.models.trust import ALL_PAIRS, NEAR_RELATIONS, relations
+    from scenescore.models.layout import ALL_PAIRS, NEAR_RELATIONS, relations
 
     def row(n: int, gap: float) -> ss.Scene:  # n objects in a line, ``gap`` apart
         objs = [ss.SceneObject(f"o_{i}", "o", (0.1, 0.1), (gap * i, 0.0, 0.0)) for i in range(n)]
@@ -276,7 +317,7 @@ def test_relations_in_a_room_are_to_each_objects_nearest_only():
 
 
 def test_relations_are_subsampled_evenly_to_the_cap():
-    from scenescore.models.trust import RELATIONS_PER_PAIR, relations
+    from scenescore.models.layout import RELATIONS_PER_PAIR, relations
 
     scenes = [_two_objects((0.01 * k, 0.0, 0.0)) for k in range(3 * RELATIONS_PER_PAIR)]
     rows = relations(scenes, length=1.0)["b"]["a"]
@@ -311,7 +352,7 @@ def test_a_malformed_relations_table_is_named():
 
 
 def test_training_stores_relations_of_the_training_scenes_only(dining):
-    from scenescore.models.trust import relations
+    from scenescore.models.layout import relations
 
     model, tr, _ = dining
     assert model.trust.relations == relations(tr, model.config.length_scale)
