@@ -163,11 +163,11 @@ def _in_pairs(
 ) -> Tensor:
     """:func:`in_turn`'s particles ``start`` improved by moves of one or two unknown objects in the whole
     scene: for each of ``problem``'s movable objects ``a`` in the scene's order, with ``b`` the next one
-    (the last's: the first), ``draws`` rows copy the particles (cycled) and move ``a``: in the first half beside a known object
-    near where the row has it (:func:`_near_draw`) with ``b`` put beside it where the data puts its kind
-    (:func:`_partner`), in the next quarter beside a near object alone, in the last quarter anywhere
-    (:meth:`~scenescore.problem.Problem.initial`); the best ``len(start)`` of the particles and the
-    rows are kept.
+    (the last's: the first), ``draws`` rows copy the particles (cycled) and move ``a``: in the first
+    half beside a known object near where the row has it (:func:`_near_draw`) with ``b`` put beside it
+    where the data puts its kind (:func:`_partner`), in the next quarter beside a near object alone, in
+    the last quarter anywhere (:meth:`~scenescore.problem.Problem.initial`); the best ``len(start)`` of
+    the particles and the rows are kept.
 
     The stages judge scenes with the later objects left out, which the data never shows (a table with an
     empty seat), and their choices can trap every particle: in zoo-cafe, with two chairs missing at one
