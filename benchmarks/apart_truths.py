@@ -14,27 +14,21 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 import scenescore as ss
 from scenescore.models.layout import apart_limits
-from scenescore.models.trust import FAR_FACTOR
+from scenescore.models.trust import FAR_FACTOR, TrustReference, apart_distances
 from scenescore.scenarios.zoo import ROOMS, SCENARIOS
 
 PAPER = ("dining", "desk", "tv")
 
 
 def doubted(scene: ss.Scene, i: int, limits: dict[str, dict[str, float]]) -> bool:
-    """Whether object ``i`` of ``scene`` (every pose known) stands farther from every object of some
-    category than :data:`FAR_FACTOR` times ``limits`` (metres)."""
-    p = scene.poses()
-    cats = np.array([o.category for o in scene.objects])
-    d = np.linalg.norm(p[:, :2] - p[i, :2], axis=-1)
-    d[i] = np.inf
-    return any(
-        bool((cats == c).sum() - (c == cats[i]) > 0) and float(d[cats == c].min()) > FAR_FACTOR * lim
-        for c, lim in limits.get(str(cats[i]), {}).items()
+    """Whether the trust check's ``apart`` test doubts object ``i`` of ``scene`` (every pose known) against
+    ``limits`` in metres (:func:`~scenescore.models.trust.apart_distances`, as placement applies it)."""
+    ref = TrustReference(
+        energies=[0.0], length_scale=1.0, nearest={}, nearest_any=0.0, touches_bounds=[], apart=limits
     )
+    return any(d[0] > FAR_FACTOR * lim for _, d, lim in apart_distances(ref, scene, i, scene.poses()[None]))
 
 
 def main(argv: list[str] | None = None) -> None:

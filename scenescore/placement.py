@@ -28,7 +28,7 @@ from .learn import TrainConfig, train
 from .models import ScoreModel
 from .problem import FEASIBILITY_TOL, Problem
 from .sampling import PLACEMENT, screen
-from .scene import Scene, SceneError, wrap_angle
+from .scene import Scene, SceneError
 from .solvers import Result, solve
 from .solvers.langevin import LangevinOptions, LangevinSolver
 from .threads import torch_threads
@@ -189,8 +189,9 @@ def _in_pairs(
 
 def _near_draw(model: ScoreModel, problem: Problem, x: Tensor, a: int, gen: torch.Generator) -> None:
     """Put object ``a`` of each row of ``x`` at a pose the data has beside one of the
-    :data:`NEAR_ANCHORS` known objects nearest to where the row has it (one drawn per row), its centre
-    kept inside the bounds; in place. Rows stay as they are without relations for ``a``."""
+    :data:`NEAR_ANCHORS` known objects nearest to where the row has it (one drawn per row), kept inside
+    the bounds (:meth:`~scenescore.problem.Problem.inside`); in place. Rows stay as they are without
+    relations for ``a``."""
     ref, scene = model.trust, problem.scene
     known = [j for j, o in enumerate(scene.objects) if o.pose is not None]
     if ref is None or not known:
@@ -211,9 +212,7 @@ def _near_draw(model: ScoreModel, problem: Problem, x: Tensor, a: int, gen: torc
     v = draw("rand", (len(x),), gen, dev, torch.float64)
     r = first[pick] + (v * counts[pick]).long().clamp(max=counts[pick] - 1)
     rel_t = torch.as_tensor(rel, dtype=x.dtype, device=dev)[r]
-    y = compose_poses(x[rows, torch.as_tensor(known, device=dev)[pick]], rel_t)
-    x[:, a, :2] = torch.minimum(torch.maximum(y[:, :2], problem.lo), problem.hi)
-    x[:, a, 2] = wrap_angle(y[:, 2])
+    x[:, a] = problem.inside(compose_poses(x[rows, torch.as_tensor(known, device=dev)[pick]], rel_t))
 
 
 def _partner(model: ScoreModel, scene: Scene, draws: Tensor, i: int, j: int, gen: torch.Generator) -> None:
@@ -306,7 +305,8 @@ def place(
     model, seed and options (for several unknown objects, with ``init=in_turn(model, scene, opts,
     seed)`` and :func:`refining` options: descent from particles found one object at a time and moved in
     pairs). By default the placed objects keep off the others (:func:`non_overlap`); ``energy_only``
-    places by the learned energy alone. It runs on the model's device (``models.load(path, device="cuda")``).
+    places by the learned energy alone. It runs on the model's device (``models.load(path,
+    device="cuda")``).
     """
     if not scene.unknown:
         return scene.copy()

@@ -136,10 +136,14 @@ class Problem:
         if k > 0:
             y = guide.propose(self.cost, x[:k], generator)
             if y is not None:
-                xy = torch.minimum(torch.maximum(y[..., :2], self.lo), self.hi)
-                y = torch.cat([xy, wrap_angle(y[..., 2:])], dim=-1)
-                x = torch.cat([torch.where(mask, y, x[:k]), x[k:]])
+                x = torch.cat([torch.where(mask, self.inside(y), x[:k]), x[k:]])
         return x
+
+    def inside(self, poses: Tensor) -> Tensor:
+        """``poses (..., 3)`` with their centres clamped into the bounds and their headings wrapped: where
+        a pose proposed beside another object is kept."""
+        xy = torch.minimum(torch.maximum(poses[..., :2], self.lo), self.hi)
+        return torch.cat([xy, wrap_angle(poses[..., 2:])], dim=-1)
 
     def full(self, poses: Tensor | np.ndarray) -> Tensor:
         """Poses as ``(B, N, 3)`` float64 on :attr:`device`; a single ``(N, 3)`` pose set is given a batch of 1.

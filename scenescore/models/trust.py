@@ -61,6 +61,7 @@ __all__ = [
     "assess",
     "NEAR_BOUND",
     "outside_data",
+    "apart_distances",
     "energy_per_object",
     "energy_shares",
     "member_shares",
@@ -261,7 +262,7 @@ class Assessment:
         return {"confidence": round(self.confidence, 4), "flags": list(self.flags)}
 
 
-def _apart(
+def apart_distances(
     ref: TrustReference, scene: Scene, i: int, poses: np.ndarray
 ) -> list[tuple[str, np.ndarray, float]]:
     """Object ``i`` of ``scene`` at each row of ``poses (B, N, 3)``: ``(category, distance (B,), limit)``
@@ -294,7 +295,7 @@ def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses:
         if far > 0 and len(scene) > 1:
             d = np.linalg.norm(np.delete(poses[:, :, :2], i, axis=1) - poses[:, i : i + 1, :2], axis=-1)
             out |= d.min(axis=1) / ref.length_scale > FAR_FACTOR * far
-        for _, d, limit in _apart(ref, scene, i, poses):
+        for _, d, limit in apart_distances(ref, scene, i, poses):
             out |= d > FAR_FACTOR * limit
     return out
 
@@ -452,7 +453,7 @@ def assess(
                 f"far: {d:.3g} {unit} from its nearest neighbour; no {o.category} in the data is more than "
                 f"{lim:.3g} {unit} away"
             )
-        for c, d, limit in _apart(ref, scene, i, p[None]):
+        for c, d, limit in apart_distances(ref, scene, i, p[None]):
             if d[0] > FAR_FACTOR * limit:
                 flags.append(
                     f"apart: {d[0]:.3g} {unit} from the nearest {c}; no {o.category} in the data is more "

@@ -122,17 +122,18 @@ def test_the_reference_stores_how_far_each_category_stands_from_the_nearest_of_e
 
     near, far = _two_objects((0.5, -0.1, 0.0)), _two_objects((0.2, 0.5, 0.0))  # 0.3 and 0.6 m from a_0
     lone = ss.Scene([ss.SceneObject("c_0", "c", (0.1, 0.1), (0.0, 0.0, 0.0))], near.bounds)
-    got = apart_limits(
-        [near, far, lone], length=0.1
-    )  # in length scales; a lone object stands apart from none
+    # in length scales (0.1 m); a lone object stands apart from none
+    got = apart_limits([near, far, lone], length=0.1)
     assert got.keys() == {"a", "b"} and got["a"].keys() == {"b"} and got["b"].keys() == {"a"}
     assert got["a"]["b"] == pytest.approx(6.0) and got["b"]["a"] == pytest.approx(6.0)
 
 
 def test_an_object_farther_from_every_object_of_a_category_than_the_data_is_flagged(dining):
     """A fork among the plates but farther from every knife than any fork in the data stands: flagged
-    ``apart`` (naming the knife, in metres), doubted by ``outside_data``, and the data's own scenes not."""
-    from scenescore.models.trust import length_unit, outside_data
+    ``apart`` (naming the knife, in the scene's unit), doubted by ``outside_data``, and the data's own
+    scenes not."""
+    from scenescore.models.trust import outside_data
+    from scenescore.units import length_unit
 
     model, tr, te = dining
     ref = model.trust
