@@ -29,6 +29,7 @@ import numpy as np
 __all__ = [
     "Bounds",
     "SceneError",
+    "WriteError",
     "SceneObject",
     "Scene",
     "read_jsonl",
@@ -55,6 +56,12 @@ _SCENE_KEYS = {"objects", "bounds", "meta"}
 
 class SceneError(ValueError):
     """Malformed scene input; the message names the file, line, object and field."""
+
+
+class WriteError(OSError, SceneError):
+    """An output that could not be written (a file-size limit, a full disk, an I/O error): an ``OSError``
+    with the cause's ``errno``, and, like every :class:`SceneError`, a one-line message (naming the file)
+    that the command line prints without a traceback. The older file at that path is left as it was."""
 
 
 def wrap_angle(a):
@@ -100,9 +107,23 @@ def _atomic_file(path: str | os.PathLike) -> Iterator[BinaryIO]:
             os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
+    except OSError as e:
+        Path(tmp).unlink(missing_ok=True)
+        # a failure of writing this file (EFBIG, ENOSPC, EIO: no file named) or of renaming it; an error
+        # that names another file came from the caller's own work in the block and is left as it is
+        if isinstance(e, WriteError) or e.filename not in (None, tmp):
+            raise
+        err = WriteError(f"{path}: could not be written ({e.strerror or e}); {_left(path)}")
+        err.errno = e.errno
+        raise err from e
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _left(path: Path) -> str:
+    """What a failed atomic write left at ``path``."""
+    return "the earlier file is unchanged" if path.exists() else "nothing was written"
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

@@ -40,11 +40,19 @@ class UserError(Exception):
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
+    from ..cluster import TasksFailed
     from ..errors import ConfigError
     from ..models import CheckpointError
     from ..scene import SceneError
 
-    errs: list[type[BaseException]] = [UserError, SceneError, CheckpointError, ConfigError, FileNotFoundError]
+    errs: list[type[BaseException]] = [
+        UserError,
+        SceneError,
+        CheckpointError,
+        ConfigError,
+        FileNotFoundError,
+        TasksFailed,
+    ]
     try:
         from ..problem import ProblemError
 

@@ -17,8 +17,6 @@ EXPERIMENTS = ["missing", "novel", "heatmap", "compose", "zoo", "tidy", "relatio
 OWN_OPTIONS: dict[str, tuple[str, ...]] = {
     "--methods": ("missing", "novel", "compose", "relations"),
     "--scenarios": ("zoo", "tidy"),
-    "--jobs": ("missing", "novel", "compose", "zoo", "tidy", "relations"),
-    "--fresh": ("missing", "novel", "compose", "zoo", "tidy", "relations"),
     "--energy-only": ("zoo",),
     "--train-scenes": ("zoo",),
     "--members": ("zoo",),
@@ -86,7 +84,7 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         type=JOBS,
         default=None,
         help="worker processes, one thread each (default: one per usable core, 1 with --device cuda; "
-        "1 runs everything in this process): compose, missing, novel and relations run their seeds in them, zoo its "
+        "1 runs everything in this process): compose, heatmap, missing, novel and relations run their seeds in them, zoo its "
         "scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
     )
     p.add_argument(
@@ -116,6 +114,59 @@ def _add_running(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--quick", action="store_true", help="short training, for a smoke test (figures not comparable)"
+    )
+
+
+def _key_value(text: str) -> tuple[str, object]:
+    """``--slurm-set KEY=VALUE``: the value read as YAML (``8`` a number, ``16GB`` text,
+    ``{qos: high}`` a mapping)."""
+    import yaml
+
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE (a submitit parameter), got {text!r}")
+    try:
+        return key.strip(), yaml.safe_load(value)
+    except yaml.YAMLError as e:
+        raise argparse.ArgumentTypeError(f"{key.strip()}: the value {value!r} is not YAML ({e})") from e
+
+
+def _add_cluster(p: argparse.ArgumentParser) -> None:
+    """Where the tasks run: this machine's worker processes, a SLURM cluster, or submitit's local jobs."""
+    p.add_argument(
+        "--executor",
+        choices=["local", "slurm", "submitit-local"],
+        default=None,
+        help="what runs the tasks (default local: this machine's worker processes, --jobs of them); slurm: "
+        "each task a job of one SLURM job array, submitted through submitit from this machine (a login "
+        "node; needs the cluster extra), its logs under OUT/slurm; submitit-local: the slurm path on this "
+        "machine's processes, --jobs at a time (to try a sweep before submitting it)",
+    )
+    p.add_argument("--slurm-partition", default=None, help="slurm: the partition (default the cluster's)")
+    p.add_argument(
+        "--slurm-time",
+        type=number(1, 60 * 24 * 30, integer=True),
+        default=None,
+        help="slurm, submitit-local: each job's time limit in minutes (default 240)",
+    )
+    p.add_argument(
+        "--slurm-gpus", type=number(0, 64, integer=True), default=None, help="slurm: GPUs per job (default 0)"
+    )
+    p.add_argument(
+        "--slurm-cpus",
+        type=number(1, 1024, integer=True),
+        default=None,
+        help="slurm, submitit-local: CPU cores per job, and the torch threads a task runs on (default 1)",
+    )
+    p.add_argument(
+        "--slurm-set",
+        type=_key_value,
+        action="append",
+        default=None,
+        metavar="KEY=VALUE",
+        help="slurm: any other submitit parameter by its name, the value read as YAML; repeat for several "
+        "(slurm_mem=16GB, slurm_account=lab, slurm_array_parallelism=8, "
+        "'slurm_additional_parameters={qos: high}')",
     )
 
 
@@ -204,6 +255,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     _add_selection(p)
     _add_running(p)
+    _add_cluster(p)
     _add_tidy(p)
     _add_relations(p)
     _add_variants(p)
@@ -217,11 +269,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     check_options(args)
     args.device = device_of(args)  # checked before any work; every runner passes it on
-    if args.jobs is None:  # experiments that run no workers (heatmap) take one process
+    if args.jobs is None:
         from ..workers import default_jobs
 
-        uses_workers = args.name == "all" or args.name in OWN_OPTIONS["--jobs"]
-        args.jobs = default_jobs(args.device) if uses_workers else 1
+        args.jobs = default_jobs(args.device)
         if args.jobs > 1:
             print(f"experiment: {args.jobs} worker processes, one per usable core (--jobs 1: one process)")
     args.model_cache = None  # the folder every runner passes to training as its model cache

@@ -16,10 +16,37 @@ if TYPE_CHECKING:
 
 def _sweep(args: argparse.Namespace, out: Path) -> Sweep:
     """Where the experiment keeps each finished task's record (``out/tasks``), so that the same command
-    run again computes only the tasks it has no record of (``--fresh``: every one)."""
+    run again computes only the tasks it has no record of (``--fresh``: every one), and what runs the
+    tasks (``--executor``: this machine's workers, or submitit's jobs with their logs under ``out/slurm``)."""
     from ..tasks import Sweep
 
-    return Sweep(out / "tasks", fresh=bool(getattr(args, "fresh", False)))
+    sweep = Sweep(out / "tasks", fresh=bool(getattr(args, "fresh", False)))
+    slurm = {k: getattr(args, k, None) for k in SLURM_OPTIONS}
+    executor = getattr(args, "executor", None) or "local"
+    if executor == "local":
+        given = [f"--{k.replace('_', '-')}" for k, v in slurm.items() if v is not None]
+        if given:
+            raise UserError(f"{', '.join(given)}: options of --executor slurm or submitit-local")
+        return sweep
+    from ..cluster import SlurmConfig, SubmititExecutor
+
+    try:
+        config = SlurmConfig(
+            out / "slurm",
+            cluster="slurm" if executor == "slurm" else "local",
+            partition=slurm["slurm_partition"],
+            time_min=slurm["slurm_time"] or 240,
+            gpus=slurm["slurm_gpus"] or 0,
+            cpus=slurm["slurm_cpus"] or 1,
+            extra=dict(slurm["slurm_set"] or []),
+        )
+    except ValueError as e:
+        raise UserError(f"--slurm-set: {e}") from e
+    sweep.executor = SubmititExecutor(config)
+    return sweep
+
+
+SLURM_OPTIONS = ("slurm_partition", "slurm_time", "slurm_gpus", "slurm_cpus", "slurm_set")
 
 
 def _methods(args: argparse.Namespace) -> list[str] | None:
@@ -140,6 +167,8 @@ def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         out=out,
         device=args.device,
         cache=args.model_cache,
+        jobs=args.jobs,
+        sweep=_sweep(args, out),
     )
     md = heatmap.format_heatmap(res)
     return md, res.rows()

@@ -13,6 +13,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from ..heatmap import energy_grid, grid_minimum
 from ..learn import TrainConfig, train
 from ..plot import draw_heatmap
 from ..scenarios import DeskScenario
+from ..tasks import Sweep, Task, run_tasks
 from .report import Row, format_table, over_seeds
 
 __all__ = ["run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES"]
@@ -62,49 +64,74 @@ def run(
     iterations: int | None = None,
     device: Any = None,
     cache: Any = None,
+    jobs: int = 1,
+    sweep: Sweep | None = None,
 ) -> HeatmapResult:
     """Train on desk scenes per seed (on ``device``; ``cache``: a model cache folder, see
-    :mod:`scenescore.learn.cache`), measure the minima; PNGs (seed 0) under ``out`` when given."""
-    sc = DeskScenario()
+    :mod:`scenescore.learn.cache`), measure the minima; PNGs (seed 0) under ``out`` when given. Each seed
+    is a task (``jobs``: worker processes; ``sweep``: where each seed's record is kept, to resume from,
+    and what runs it; :mod:`scenescore.tasks`); ``seconds`` sums the tasks'."""
+    config = {
+        "quick": quick,
+        "resolution": resolution,
+        "n_train": n_train,
+        "iterations": iterations or (60 if quick else TrainConfig().iterations),
+        "device": str(device),
+        "out": None if out is None else str(out),
+    }  # every setting a seed's record depends on
+    one = partial(_seed, config=config, progress=progress and jobs == 1, device=device, cache=cache)
+    tasks = [Task.of("heatmap", seed=seed, config=config) for seed in range(seeds)]
     res = HeatmapResult()
-    t0 = time.perf_counter()
-    for seed in range(seeds):
-        train_s, _ = sc.split(seed)
-        if n_train is not None:
-            train_s = train_s[:n_train]
-        tc = TrainConfig(iterations=iterations or (60 if quick else TrainConfig().iterations))
-        model = train(train_s, tc, seed=seed, progress=progress, device=device, cache=cache)
-        figs: dict[str, float] = {}
-        minima: dict[tuple[str, float], tuple[float, float]] = {}
-        for tool in ("pen", "pencil"):
-            errs = []
-            for d in PEN_DISTANCES:
-                scene = sc.arrange(BOOK, d, pen=tool)
-                xs, ys, e = energy_grid(model, scene, "mug", resolution)
-                mn = grid_minimum(xs, ys, e)
-                minima[(tool, d)] = mn
-                found = math.hypot(mn[0] - BOOK[0], mn[1] - BOOK[1])
-                truth = sc.mug_distance(d)
-                figs[f"{tool}_mug_distance_cm_at_{round(d * 100)}cm"] = 100 * found
-                errs.append(100 * abs(found - truth))
-                if out is not None and seed == 0:
-                    path = Path(out) / f"heatmap_{tool}_{round(d * 100)}cm.png"
-                    true_xy = (BOOK[0] - truth, BOOK[1])
-                    title = f"energy over the mug's position; {tool} {d * 100:.0f} cm from the book"
-                    draw_heatmap(scene, "mug", xs, ys, e, mn, path, title, truth=true_xy)
-                    res.figures.append(str(path))
-            figs[f"{tool}_relation_error_cm"] = float(np.mean(errs))
-        shift = [100 * math.dist(minima[("pen", d)], minima[("pencil", d)]) for d in PEN_DISTANCES]
-        figs["pencil_from_pen_minimum_cm"] = float(np.mean(shift))
-        figs["pencil_from_pen_minimum_max_cm"] = float(np.max(shift))
-        res.per_seed.append(figs)
-        log(
-            f"seed {seed}: relation error pen {figs['pen_relation_error_cm']:.2f} cm, pencil "
-            f"{figs['pencil_relation_error_cm']:.2f} cm; pencil minimum {figs['pencil_from_pen_minimum_cm']:.2f} cm "
-            "from the pen's"
-        )
-    res.seconds = time.perf_counter() - t0
+    for record in run_tasks(one, tasks, jobs, log, "heatmap seeds" if progress else None, sweep):
+        res.per_seed.append(record["figures"])
+        res.figures += record["files"]
+        res.seconds += record["seconds"]
     return res
+
+
+def _seed(
+    task: Task, log: Callable[[str], None], config: dict[str, Any], progress: bool, device: Any, cache: Any
+) -> dict[str, Any]:
+    """One seed: train, find the minima over the grid, draw them (seed 0, under ``config["out"]``); its
+    figures, the files drawn and the seconds taken."""
+    t0 = time.perf_counter()
+    sc = DeskScenario()
+    seed = task.seed
+    train_s, _ = sc.split(seed)
+    if config["n_train"] is not None:
+        train_s = train_s[: config["n_train"]]
+    tc = TrainConfig(iterations=config["iterations"])
+    model = train(train_s, tc, seed=seed, progress=progress, device=device, cache=cache)
+    figs: dict[str, float] = {}
+    files: list[str] = []
+    minima: dict[tuple[str, float], tuple[float, float]] = {}
+    for tool in ("pen", "pencil"):
+        errs = []
+        for d in PEN_DISTANCES:
+            scene = sc.arrange(BOOK, d, pen=tool)
+            xs, ys, e = energy_grid(model, scene, "mug", config["resolution"])
+            mn = grid_minimum(xs, ys, e)
+            minima[(tool, d)] = mn
+            found = math.hypot(mn[0] - BOOK[0], mn[1] - BOOK[1])
+            truth = sc.mug_distance(d)
+            figs[f"{tool}_mug_distance_cm_at_{round(d * 100)}cm"] = 100 * found
+            errs.append(100 * abs(found - truth))
+            if config["out"] is not None and seed == 0:
+                path = Path(config["out"]) / f"heatmap_{tool}_{round(d * 100)}cm.png"
+                true_xy = (BOOK[0] - truth, BOOK[1])
+                title = f"energy over the mug's position; {tool} {d * 100:.0f} cm from the book"
+                draw_heatmap(scene, "mug", xs, ys, e, mn, path, title, truth=true_xy)
+                files.append(str(path))
+        figs[f"{tool}_relation_error_cm"] = float(np.mean(errs))
+    shift = [100 * math.dist(minima[("pen", d)], minima[("pencil", d)]) for d in PEN_DISTANCES]
+    figs["pencil_from_pen_minimum_cm"] = float(np.mean(shift))
+    figs["pencil_from_pen_minimum_max_cm"] = float(np.max(shift))
+    log(
+        f"seed {seed}: relation error pen {figs['pen_relation_error_cm']:.2f} cm, pencil "
+        f"{figs['pencil_relation_error_cm']:.2f} cm; pencil minimum {figs['pencil_from_pen_minimum_cm']:.2f} cm "
+        "from the pen's"
+    )
+    return {"figures": figs, "files": files, "seconds": time.perf_counter() - t0}
 
 
 def format_heatmap(res: HeatmapResult) -> str:

@@ -11,6 +11,7 @@ from scenescore.experiments import heatmap, novel
 from scenescore.heatmap import energy_grid, grid_minimum
 from scenescore.learn import TrainConfig, train
 from scenescore.scenarios import DeskScenario
+from scenescore.tasks import Sweep
 
 
 def test_novel_oracle_row_is_near_zero():
@@ -90,16 +91,11 @@ def test_heatmap_command(tmp_path, desk_model, capsys):
 
 def test_heatmap_run_quick(tmp_path):
     torch.manual_seed(0)
-    res = heatmap.run(
-        seeds=1,
-        quick=True,
-        progress=False,
-        out=tmp_path,
-        log=lambda s: None,
-        resolution=0.05,
-        n_train=4,
-        iterations=3,
-    )
+    lines: list[str] = []
+    kw = dict(seeds=1, quick=True, progress=False, out=tmp_path, resolution=0.05, n_train=4, iterations=3)
+    res = heatmap.run(log=lines.append, sweep=Sweep(tmp_path / "tasks"), **kw)
+    again = heatmap.run(log=lines.append, sweep=Sweep(tmp_path / "tasks"), **kw)  # the seed's record reused
+    assert "heatmap: reused 1 of 1 tasks" in lines[-1] and again.per_seed == res.per_seed
     pen, pencil = res.rows()
     assert pen.method == "SceneScore, pen" and pencil.method == "SceneScore, pencil"
     for key in ("relation_error_cm", "mug_distance_cm_at_21cm"):

@@ -80,8 +80,6 @@ def test_fresh_computes_every_task_again(tmp_path, calls, capsys):
     calls.clear()
     assert main(ARGS + ["--out", str(tmp_path)]) == 0
     assert calls == []
-    assert main(["experiment", "heatmap", "--fresh", "--quick", "--out", str(tmp_path / "h")]) == 2
-    assert "--fresh is an option of the missing" in capsys.readouterr().err
 
 
 def test_a_damaged_record_is_computed_again_with_a_warning_naming_it(tmp_path, calls, capsys):
