@@ -112,8 +112,8 @@ def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tm
     assert "experiment: 2 worker processes, one per usable core" in capsys.readouterr().out
     assert main(["experiment", "missing", "--jobs", "1", "--out", str(tmp_path / "m")]) == 0
     assert jobs == [2, 1] and "worker processes" not in capsys.readouterr().out
-    assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0  # runs no workers
-    assert jobs == [2, 1, 1] and "worker processes" not in capsys.readouterr().out
+    assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0  # its seeds in workers too
+    assert jobs == [2, 1, 2] and "experiment: 2 worker processes" in capsys.readouterr().out
 
 
 def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(monkeypatch, tmp_path):

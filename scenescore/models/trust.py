@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,7 @@ from .layout import (
     relations,
     touching_bound,
 )
+from .shares import energy_per_object, energy_shares, member_shares, shares_by_energy
 
 __all__ = [
     "TrustReference",
@@ -300,49 +301,6 @@ def outside_data(ref: TrustReference, scene: Scene, names: Sequence[str], poses:
     return out
 
 
-def energy_per_object(model: Any, scenes: Sequence[Scene]) -> list[float]:
-    """The learned energy of each fully posed scene, divided by its number of objects."""
-    with torch.no_grad():
-        st = model.tensors(scenes)
-        e = model.energy(st.poses, st)
-    return [float(v) / len(s) for v, s in zip(e, scenes)]
-
-
-def energy_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) -> np.ndarray:
-    """Each object's share of ``scene``'s learned energy (every pose known): the scene's energy minus
-    the energy of the scene without it (a lone object's: the scene's energy), for ``names`` (default all)
-    ``(K,)``. Unlike the scene's energy it does not move with how unusual the rest of the scene is."""
-    return _shares(model, scene, names, members=False)[0]
-
-
-def member_shares(model: Any, scene: Scene, names: Sequence[str] | None = None) -> np.ndarray:
-    """:func:`energy_shares` by each member of an ensemble's energy: ``(members, K)`` (one row for a
-    single network)."""
-    rows = _shares(model, scene, names, members=True)
-    return rows[1:] if len(rows) > 1 else rows
-
-
-def _shares(model: Any, scene: Scene, names: Sequence[str] | None, members: bool) -> np.ndarray:
-    """The shares by the model's energy, then (``members``, for an ensemble) by each member's, from one
-    pass: ``(1 [+ members], K)``. The ensemble's energy is its members' mean, taken here as the network
-    takes it, so row 0 is :func:`energy_shares`'s to the bit."""
-    names = list(scene.names if names is None else names)
-    rest = [
-        replace(scene, objects=[o for o in scene.objects if o.name != name])
-        for name in names
-        if len(scene) > 1
-    ]
-    with torch.no_grad():
-        st = model.tensors([scene, *rest])
-        if members and getattr(model, "members", 1) > 1:
-            each = model.member_energies(st.poses, st)
-            rows = torch.cat([each.mean(dim=0, keepdim=True), each])
-        else:
-            rows = model.energy(st.poses, st)[None]
-    e = rows.double().cpu().numpy()  # (rows, 1 + K)
-    return e[:, :1] - e[:, 1:] if rest else e[:, :1].repeat(len(names), axis=1)
-
-
 def reference(
     model: Any, train: Sequence[Scene], held_out: Sequence[Scene] = (), feature_noise: float = 0.0
 ) -> TrustReference:
@@ -368,7 +326,7 @@ def reference(
     size = getattr(model, "members", 1)
     tables: list[dict[str, list[float]]] = [{} for _ in range(size + 1 if size > 1 else 1)]
     for s in held_out or train:  # the mean energy's shares, then each member's
-        for table, row in zip(tables, _shares(model, s, None, members=True), strict=True):
+        for table, row in zip(tables, shares_by_energy(model, s, None, members=True), strict=True):
             for o, v in zip(s.objects, row):
                 table.setdefault(o.category, []).append(float(v))
     kept = [{c: evenly(sorted(v), MAX_SHARES) for c, v in sorted(t.items())} for t in tables]
@@ -399,7 +357,7 @@ def assess(
     per_member = None  # (members, K): each member's shares, an ensemble's
     if ref.shares:
         judged = bool(ref.member_shares) and getattr(model, "members", 1) == len(ref.member_shares or [])
-        rows = _shares(model, scene, names, members=judged)
+        rows = shares_by_energy(model, scene, names, members=judged)
         share = dict(zip(names, rows[0].tolist()))
         per_member = rows[1:] if judged else None
     else:  # a checkpoint from before the shares were stored: the scene's energy per object
