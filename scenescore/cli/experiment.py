@@ -66,7 +66,7 @@ def _add_selection(p: argparse.ArgumentParser) -> None:
         "NeatNet-R, SceneScore, Oracle; compose: NeatNet, SceneScore, 'SceneScore (langevin>alm)', "
         "'SceneScore (langevin>osqp)', "
         "'SceneScore (langevin>casadi)'; relations: 'Relations (langevin)', 'Relations (langevin>alm)', "
-        "'Rejection (uniform)'",
+        "'Whole scenes (langevin>alm)', 'Rejection (uniform)'",
     )
     p.add_argument(
         "--scenarios",

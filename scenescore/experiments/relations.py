@@ -14,6 +14,11 @@ the exact non-overlap and bounds checks (:meth:`~scenescore.scenarios.relation_p
 - Relations (langevin>alm): the same particles, each refined at once by the batched augmented
   Lagrangian (``alm``, :data:`REFINE`) under the collision and bounds constraints; its time includes
   the Langevin stage.
+- Whole scenes (langevin>alm): one SceneScore energy trained on whole arrangements of the same process
+  (:func:`whole_scene_training`: the generator's arrangements, :data:`WHOLE_SCENES` of each size, drawn
+  from another stream than the test problems), + 10 * hinge collision + 10 * bounds, sampled and refined
+  as the row above. It sees the objects, never the relations a problem asks for: the baseline that tells
+  what knowing the relations buys.
 - Rejection (uniform): arrangements drawn uniformly (positions in the bounds, headings in a full
   turn) until one solves the problem, at most ``tries * steps`` of them: as many as the Langevin
   stage evaluates the cost at.
@@ -33,12 +38,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from ..costs import Bounds, Cost, HingeCollision, Relation
+from ..costs import Bounds, Cost, HingeCollision, LearnedEnergy, Relation
 from ..learn import TrainConfig, train
 from ..problem import Problem
 from ..scenarios import get
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, RelationProblem, relation_problems
-from ..scene import SceneError
+from ..scene import Scene, SceneError
 from ..solvers import get as get_solver
 from ..solvers import solve
 from ..tasks import Sweep, Task, run_tasks
@@ -51,6 +56,7 @@ __all__ = [
     "METHODS",
     "LANGEVIN",
     "REFINED",
+    "WHOLE",
     "REJECTION",
     "REFINE",
     "SIZES",
@@ -58,6 +64,7 @@ __all__ = [
     "RelationsResult",
     "train_config",
     "train_relations",
+    "whole_scene_training",
     "relation_cost_problem",
     "run",
     "format_relations",
@@ -66,8 +73,11 @@ __all__ = [
 
 LANGEVIN = "Relations (langevin)"
 REFINED = "Relations (langevin>alm)"
+WHOLE = "Whole scenes (langevin>alm)"
 REJECTION = "Rejection (uniform)"
-METHODS = [LANGEVIN, REFINED, REJECTION]
+METHODS = [LANGEVIN, REFINED, WHOLE, REJECTION]
+WHOLE_SCENES = 48  # training arrangements of each size for the whole-scene energy
+WHOLE_STREAM = 10_000  # their generator's seed is this plus the seed: never a test problem's
 SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
 STEPS = 100  # Langevin steps per try (the rejection budget is tries * STEPS draws)
 COLLISION_WEIGHT = 10.0  # the hinge collision and bounds penalties' weight beside the relation energies
@@ -116,6 +126,24 @@ def train_relations(
     }
 
 
+def whole_scene_training(sizes: Sequence[int], seed: int, relations: Sequence[str]) -> list[Scene]:
+    """The whole-scene energy's training arrangements: :data:`WHOLE_SCENES` of each size in ``sizes``,
+    the problem generator's own arrangements (solutions of its problems) from the stream
+    ``WHOLE_STREAM + seed``, so that no test problem's arrangement is among them."""
+    return [
+        p.scene
+        for n in sizes
+        for p in relation_problems(n, WHOLE_SCENES, WHOLE_STREAM + seed, list(relations))
+    ]
+
+
+def whole_scene_problem(problem: RelationProblem, model: ScoreModel) -> Problem:
+    """The whole-scene energy over the problem's objects + 10 * hinge collision + 10 * bounds, every
+    object moving: the relations themselves are not in it."""
+    cost = LearnedEnergy(model) + COLLISION_WEIGHT * HingeCollision() + COLLISION_WEIGHT * Bounds()
+    return Problem(problem.unposed, cost)
+
+
 def relation_cost_problem(problem: RelationProblem, models: dict[str, ScoreModel]) -> Problem:
     """The problem's summed relation energies (one :class:`~scenescore.costs.Relation` term per relation,
     its instances in one call) + 10 * hinge collision + 10 * bounds, every object moving."""
@@ -150,24 +178,47 @@ def rejection(problem: RelationProblem, budget: int, seed: int) -> bool:
     return False
 
 
+def _sample_refine(
+    problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool
+) -> tuple[tuple[bool, float], tuple[bool, float] | None]:
+    """``langevin`` with ``tries`` particles, then (``refine``) ``alm`` from them: whether each solves
+    ``problem``, and its seconds (the refinement's include the sampling's)."""
+    t0 = time.perf_counter()
+    r = solve(prob, "langevin", seed=seed, options={"langevin": {"particles": tries, "steps": STEPS}})
+    t_lan = time.perf_counter() - t0
+    assert r.samples is not None
+    sampled = (_any_solved(problem, r.samples), t_lan)
+    if not refine:
+        return sampled, None
+    t0 = time.perf_counter()
+    rr = get_solver("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
+    assert rr.samples is not None
+    return sampled, (_any_solved(problem, rr.samples), t_lan + time.perf_counter() - t0)
+
+
 def _solve_one(
-    problem: RelationProblem, models: dict[str, ScoreModel], chosen: list[str], tries: int, seed: int
+    problem: RelationProblem,
+    models: dict[str, ScoreModel],
+    whole: ScoreModel | None,
+    chosen: list[str],
+    tries: int,
+    seed: int,
 ) -> dict[str, tuple[bool, float]]:
     """Whether each chosen method solves ``problem`` within ``tries``, and its seconds."""
     out: dict[str, tuple[bool, float]] = {}
     if LANGEVIN in chosen or REFINED in chosen:
-        prob = relation_cost_problem(problem, models)
-        t0 = time.perf_counter()
-        r = solve(prob, "langevin", seed=seed, options={"langevin": {"particles": tries, "steps": STEPS}})
-        t_lan = time.perf_counter() - t0
-        assert r.samples is not None
+        sampled, refined = _sample_refine(
+            problem, relation_cost_problem(problem, models), tries, seed, REFINED in chosen
+        )
         if LANGEVIN in chosen:
-            out[LANGEVIN] = (_any_solved(problem, r.samples), t_lan)
-        if REFINED in chosen:
-            t0 = time.perf_counter()
-            rr = get_solver("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
-            assert rr.samples is not None
-            out[REFINED] = (_any_solved(problem, rr.samples), t_lan + time.perf_counter() - t0)
+            out[LANGEVIN] = sampled
+        if refined is not None:
+            out[REFINED] = refined
+    if WHOLE in chosen:
+        assert whole is not None
+        _, refined = _sample_refine(problem, whole_scene_problem(problem, whole), tries, seed, True)
+        assert refined is not None
+        out[WHOLE] = refined
     if REJECTION in chosen:
         t0 = time.perf_counter()
         out[REJECTION] = (rejection(problem, tries * STEPS, seed), time.perf_counter() - t0)
@@ -198,12 +249,19 @@ def _seed(
         for m in (LANGEVIN, REFINED):
             if m in chosen:
                 seconds[m] += time.perf_counter() - t0
+    whole = None
+    if WHOLE in chosen:
+        t0 = time.perf_counter()
+        whole = train(
+            whole_scene_training(sizes, seed, relations), config, seed=seed, device=device, cache=cache
+        )
+        seconds[WHOLE] += time.perf_counter() - t0
     figures: dict[str, dict[str, float]] = {m: {} for m in chosen}
     for n in sizes:
         solved = dict.fromkeys(chosen, 0)
         spent = dict.fromkeys(chosen, 0.0)
         for k, prob in enumerate(relation_problems(n, problems, seed, relations)):
-            for m, (ok, dt) in _solve_one(prob, models, chosen, tries, 1000 * n + k).items():
+            for m, (ok, dt) in _solve_one(prob, models, whole, chosen, tries, 1000 * n + k).items():
                 solved[m] += int(ok)
                 spent[m] += dt
         for m in chosen:
@@ -303,7 +361,7 @@ def plot_relations(res: RelationsResult, path: str | Path) -> None:
     for k, r in enumerate(res.rows()):
         y = [r.figures[f"solved_{n}"] for n in res.sizes]
         err = [r.figures.get(f"solved_{n}_std", 0.0) for n in res.sizes]
-        marker, line = "os^"[k % 3], ("-", "--", ":")[k % 3]  # lines of equal figures stay apart
+        marker, line = "os^D"[k % 4], ("-", "--", ":", "-.")[k % 4]  # lines of equal figures stay apart
         ax.errorbar(res.sizes, y, yerr=err, capsize=2, label=r.method, marker=marker, linestyle=line)
     ax.set_xlabel("objects per problem (about 1.5 relations each)")
     ax.set_ylabel(f"fraction solved (within {res.tries} tries)")
