@@ -147,6 +147,8 @@ def whole_scene_problem(problem: RelationProblem, model: ScoreModel) -> Problem:
 def relation_cost_problem(problem: RelationProblem, models: dict[str, ScoreModel]) -> Problem:
     """The problem's summed relation energies (one :class:`~scenescore.costs.Relation` term per relation,
     its instances in one call) + 10 * hinge collision + 10 * bounds, every object moving."""
+    if not problem.relations:
+        raise SceneError("relation problem: it names no relation, so there is no relation energy to sum")
     terms = []
     for rel, instances in problem.by_relation().items():
         if rel not in models:

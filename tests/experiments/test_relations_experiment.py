@@ -4,12 +4,13 @@ on hand-built cases, and a tiny run from the command line writes the documented 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from scenescore.cli import main
-from scenescore.experiments.relations import METHODS
+from scenescore.experiments.relations import METHODS, relation_cost_problem
 from scenescore.scenarios.relation_problems import (
     PROBLEM_RELATIONS,
     RelationProblem,
@@ -71,6 +72,9 @@ def test_problems_are_consistent_seeded_and_about_one_and_a_half_relations_per_o
 
 
 def test_bad_problem_requests_are_clear_errors():
+    empty = relation_problem(2, 0)
+    with pytest.raises(SceneError, match="names no relation"):
+        relation_cost_problem(replace(empty, relations=()), {})
     with pytest.raises(SceneError, match="2 to 10"):
         relation_problem(11, 0)
     with pytest.raises(SceneError, match="centred_on"):
