@@ -10,7 +10,7 @@ import argparse
 import importlib
 import os
 import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import torch
@@ -108,6 +108,22 @@ def number(
         return value
 
     return parse
+
+
+def key_value(text: str, example: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` as ``(key, value)``, the value read as YAML (``8`` a number, ``16GB`` text,
+    ``[0.05, 2.0]`` a list, ``{qos: high}`` a mapping): what ``train --set`` and ``experiment
+    --slurm-set`` take. ValueError saying what is wrong otherwise, with ``example`` of the right form."""
+    import yaml
+
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise ValueError(f"expected KEY=VALUE, e.g. {example}")
+    try:
+        return key.strip(), yaml.safe_load(value)
+    except yaml.YAMLError as e:
+        problem = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise ValueError(f"the value {value!r} is not YAML ({problem})") from None
 
 
 SEED = number(-(2**63), 2**63 - 1, integer=True)  # what torch's generators take

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from ..models.ensemble import MAX_MEMBERS
-from . import ITERATIONS, JOBS, SCENES, SEEDS, UserError, add_common, add_device, device_of, number
+from . import ITERATIONS, JOBS, SCENES, SEEDS, UserError, add_common, add_device, device_of, key_value, number
 from .experiment_runs import RUNNERS
 
 EXPERIMENTS = ["missing", "novel", "heatmap", "compose", "zoo", "tidy", "relations"]
@@ -118,17 +118,11 @@ def _add_running(p: argparse.ArgumentParser) -> None:
 
 
 def _key_value(text: str) -> tuple[str, object]:
-    """``--slurm-set KEY=VALUE``: the value read as YAML (``8`` a number, ``16GB`` text,
-    ``{qos: high}`` a mapping)."""
-    import yaml
-
-    key, sep, value = text.partition("=")
-    if not sep or not key.strip():
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE (a submitit parameter), got {text!r}")
+    """``--slurm-set KEY=VALUE``: a submitit parameter, the value read as YAML (:func:`key_value`)."""
     try:
-        return key.strip(), yaml.safe_load(value)
-    except yaml.YAMLError as e:
-        raise argparse.ArgumentTypeError(f"{key.strip()}: the value {value!r} is not YAML ({e})") from e
+        return key_value(text, "slurm_mem=16GB (a submitit parameter)")
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"{text!r}: {e}") from None
 
 
 def _add_cluster(p: argparse.ArgumentParser) -> None:

@@ -74,20 +74,17 @@ def _checked(key: str, value: Any, source: str) -> Any:
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """``--set key=value`` items as settings, each value read as a YAML scalar (``0.3``, ``true``,
-    ``null``, ``[0.05, 2.0]``); a later item for the same key wins."""
-    import yaml
+    """``--set key=value`` items as settings, each value read as YAML (``0.3``, ``true``, ``null``,
+    ``[0.05, 2.0]``: :func:`scenescore.cli.key_value`); a later item for the same key wins."""
+    from . import key_value
 
     out: dict[str, Any] = {}
     for item in items:
-        key, eq, text = item.partition("=")
-        if not eq or not key.strip():
-            raise ConfigError(f"--set {item!r}: expected key=value, e.g. feature_noise=0.3")
         try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError:
-            raise ConfigError(f"--set {item!r}: the value is not a YAML scalar") from None
-        out[key.strip()] = _checked(key.strip(), value, f"--set {item}")
+            key, value = key_value(item, "feature_noise=0.3")
+        except ValueError as e:
+            raise ConfigError(f"--set {item!r}: {e}") from None
+        out[key] = _checked(key, value, f"--set {item}")
     return out
 
 
