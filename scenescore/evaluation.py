@@ -216,6 +216,7 @@ class EvalReport:
     baseline: str | None = None  # the baseline's name, when it ran
     flagged: int = 0  # placements flagged as out of distribution
     unit: str | None = None  # the length unit the scenes name (``meta.unit``), None when they name none
+    folds: int | None = None  # cross-validation's folds pooled here (None: one set of held-out scenes)
     examples: list[tuple[MissingCase, Scene]] = field(default_factory=list, repr=False)  # a few, for plots
 
     def table(self) -> str:
@@ -249,7 +250,8 @@ class EvalReport:
             lines.append(note)
         lines.append(
             f"held-out InfoNCE loss {self.heldout_loss:.3f} (chance {self.chance_loss:.3f}); "
-            f"{self.scenes} scenes, {self.placements} placements, {self.flagged} flagged out of distribution"
+            + (f"{self.folds}-fold cross-validation, " if self.folds else "")
+            + f"{self.scenes} scenes, {self.placements} placements, {self.flagged} flagged out of distribution"
             + (f"; NN = {self.baseline}" if self.baseline else "")
         )
         return "\n".join(lines)

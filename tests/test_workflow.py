@@ -71,9 +71,11 @@ def test_the_cli_saves_the_model_the_library_returns(tmp_path, capsys):
     lines: list[str] = []
     model = ss.train(ss.read_jsonl(data), cfg, seed=1, force=True, progress=False, log=lines.append)
     _same(saved, model)
-    assert model.info.validation is not None and model.info.validation["scenes"] == 4  # 4 of 6 held out
-    assert model.info.tidy is not None and model.info.tidy.scenes == 4 and model.info.trust is not None
-    assert lines[0].startswith("trained on 2 scenes") and lines[0].split(" s ")[1] in printed
+    # six scenes: all trained on, each placed back once by 3-fold cross-validation
+    assert model.info.validation is not None and model.info.validation["scenes"] == 6
+    assert model.info.validation["folds"] == 3
+    assert model.info.tidy is not None and model.info.tidy.scenes == 6 and model.info.trust is not None
+    assert lines[0].startswith("trained on 6 scenes") and lines[0].split(" s ")[1] in printed
     assert [s for s in lines[1:] if "tidy: a move" in s][0] in printed
     report = json.loads((tmp_path / "train_report.json").read_text())
     assert report["tidy"] == model.info.tidy.to_dict() and report["validation"] == model.info.validation

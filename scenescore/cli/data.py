@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
+from ..learn.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES
 from ..learn.training_state import SAVE_EVERY
 from ..memory import check, format_gb
 from ..models.ensemble import MAX_MEMBERS
@@ -159,6 +160,14 @@ def _add_train_outputs(p: argparse.ArgumentParser) -> None:
         default=VALIDATION_FRACTION,
         help=f"fraction of the scenes held out for validation (default {VALIDATION_FRACTION:g}, at least 4 "
         "scenes; 0: none)",
+    )
+    p.add_argument(
+        "--folds",
+        type=number(1, 100, integer=True),
+        default=None,
+        help=f"validate by K-fold cross-validation and train the model on every scene (K more trainings); "
+        f"1: one hold-out of --val (default {FOLDS} folds for {MIN_SCENES} to {CROSS_VALIDATE_BELOW - 1} "
+        "scenes, one hold-out for more)",
     )
     p.add_argument(
         "--val-data", type=Path, default=None, help="a .jsonl of held-out scenes to validate on instead"
@@ -357,6 +366,7 @@ def run_train(args: argparse.Namespace) -> int:
             seed=args.seed,
             heldout=heldout,
             fraction=args.val,
+            folds=args.folds,
             out=args.out,
             report=args.report,
             plot=args.plot,

@@ -1,7 +1,7 @@
 """The training workflow, as ``scenescore train`` runs it and ``ss.train`` returns it (:func:`train_model`).
 
 Hold scenes out, train on the rest, refuse a model that learned nothing, evaluate on the held-out
-scenes, draw the learning curve, calibrate what a tidying move must gain, save the checkpoint and the
+scenes (with little data: train on every scene and cross-validate, :mod:`~scenescore.learn.crossval`), draw the learning curve, calibrate what a tidying move must gain, save the checkpoint and the
 report. The command line only reads its files and calls :func:`train_model`, so the model a script
 gets from ``ss.train(scenes, seed=s)`` is the one ``scenescore train data.jsonl --seed s`` saves.
 """
@@ -18,12 +18,13 @@ from typing import Any
 import torch
 
 from ..encoders import Encoder
-from ..evaluation import evaluate
+from ..evaluation import EvalReport, evaluate
 from ..models import ScoreModel
 from ..plot import training_figure
 from ..scene import Scene, atomic_write_text, write_jsonl
 from ..tidying import calibrate, count_weight
 from .config import TrainConfig
+from .crossval import cross_validate, folds_for
 from .data import VALIDATION_FRACTION, check_training_data, split_validation
 from .logs import log_validation
 from .loop import member_state, train
@@ -88,11 +89,15 @@ def train_model(
     state: str | os.PathLike | None = None,
     resume: bool = False,
     save_every: int = SAVE_EVERY,
+    folds: int | None = None,
 ) -> ScoreModel:
     """Train a model on ``scenes`` as ``scenescore train`` does, and return it evaluated and calibrated.
 
     ``heldout``: scenes to validate on (every scene of ``scenes`` is then trained on); else ``fraction``
-    of ``scenes`` is held out by ``seed`` (:func:`holdout`). The held-out scenes become the trust
+    of ``scenes`` is held out by ``seed`` (:func:`holdout`), or, with ``folds`` of 2 or more (by default
+    with fewer than :data:`~scenescore.learn.crossval.CROSS_VALIDATE_BELOW` scenes), the model is
+    trained on every scene and validated by ``folds``-fold cross-validation, each fold's model trained
+    with ``config`` and ``seed`` (``folds=1``: one hold-out whatever the data's size). The held-out scenes become the trust
     reference, are placed back object by object (the figures in ``model.info.validation``) and calibrate
     tidying (``model.info.tidy``; without held-out scenes, the first :data:`TIDY_SCENES` training ones).
     A model whose loss never fell below chance raises :class:`NothingLearned` unless ``force``.
@@ -107,7 +112,8 @@ def train_model(
     say: Log = log or (lambda line: None)
     out_path = None if out is None else Path(out)
     check_training_data(scenes)
-    train_s, held = holdout(scenes, fraction, heldout, seed)
+    k = folds_for(len(scenes), folds, fraction, heldout is not None)
+    train_s, held = (list(scenes), []) if k else holdout(scenes, fraction, heldout, seed)
     model = train(
         train_s,
         cfg,
@@ -134,9 +140,16 @@ def train_model(
     record["training"] = info.training()
     examples: list[Any] = []
     if held:
-        examples = _validate(model, train_s, held, record, seed, progress, log_dir, cfg, say)
+        ev = evaluate(model, held, train_s, seed=seed, progress=progress)
+        examples = _adopt(model, ev, record, log_dir, cfg, say)
         if heldout is None and out_path is not None:
             _write_heldout(held, out_path, record, seed, source, say)
+    elif k:
+        say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
+        ev = cross_validate(
+            scenes, cfg, k, encoder=encoder, seed=seed, device=device, progress=progress, say=say
+        )
+        examples = _adopt(model, ev, record, log_dir, cfg, say)
     if plot is not None:
         training_figure(info.history or [], info.chance_loss, examples, plot)
         say(f"wrote {plot}")
@@ -151,27 +164,28 @@ def train_model(
     return model
 
 
-def _validate(
+def _adopt(
     model: ScoreModel,
-    train_s: list[Scene],
-    held: list[Scene],
+    ev: EvalReport,
     record: dict[str, Any],
-    seed: int,
-    progress: bool,
     log_dir: str | os.PathLike | None,
     cfg: TrainConfig,
     say: Log,
 ) -> list[Any]:
-    """Place the held-out scenes' objects back (beside nearest neighbour on ``train_s``): the figures
-    go in the model's info, the record and the TensorBoard log; the table is said, and what it finds
-    unlearned is warned of and kept as the model's caveats, which its placements then carry among their
-    flags. A few placements are returned, for the plot."""
-    ev = evaluate(model, held, train_s, seed=seed, progress=progress)
+    """Keep the validation figures ``ev`` (held-out objects placed back, beside nearest neighbour) in
+    the model's info, the record and the TensorBoard log; say the table, and warn of what it finds
+    unlearned, kept as the model's caveats, which its placements then carry among their flags. A few
+    placements are returned, for the plot."""
     model.info.validation = record["validation"] = ev.to_dict()
     model.info.caveats = ev.caveats()
     if log_dir is not None:
         log_validation(log_dir, ev.to_dict(), cfg.iterations - 1)
-    say(f"\nleave-one-object-out on {len(held)} held-out scenes (seed {seed}):\n{ev.table()}")
+    how = (
+        f"{ev.scenes} scenes, each held out once ({ev.folds}-fold cross-validation; seed {ev.seed})"
+        if ev.folds
+        else f"{ev.scenes} held-out scenes (seed {ev.seed})"
+    )
+    say(f"\nleave-one-object-out on {how}:\n{ev.table()}")
     for w in ev.warnings():
         print(f"warning: {w}", file=sys.stderr)
     return ev.examples

@@ -24,6 +24,8 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
         "--iterations",
         "8",
         "--force",  # a short run: its loss may not be below chance yet
+        "--folds",  # one hold-out (eight scenes would be cross-validated: test_crossval)
+        "1",
         "--quiet",
         "--plot",
         str(tmp_path / "t.png"),
