@@ -1,6 +1,7 @@
 """How often one relation model alone gives an arrangement its checker accepts.
 
     python benchmarks/relation_models.py [--seed 0] [--problems 20] [--relations left_of,facing]
+        [--set KEY=VALUE ...]
 
 The relations experiment sums one energy per relation; a problem of N objects asks for about 1.5 N of
 them, so its solved fraction is bounded by how often each energy alone is satisfied. Here each relation
@@ -10,7 +11,8 @@ generator's own, restricted to the relation), with non-overlap and bounds, and s
 experiment's ``Relations (langevin>alm)`` row samples (10 particles, each refined). The table gives, per
 relation, the fraction of all samples that solve their problem (every checker, non-overlap, bounds) and
 the fraction of problems with at least one; a relation with few samples accepted limits every problem
-that names it.
+that names it. ``--set`` changes the models' training settings (``TrainConfig`` fields, as for
+``scenescore train --set``), to compare them on this table.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ import time
 import numpy as np
 import torch
 
+from scenescore.cli.train_settings import build_config, parse_overrides
+from scenescore.errors import ConfigError
 from scenescore.experiments import relations as R
 from scenescore.scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
 from scenescore.solvers import get as get_solver
@@ -35,14 +39,22 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--problems", type=int, default=20, help="problems drawn per relation (default 20)")
     ap.add_argument("--relations", default=",".join(PROBLEM_RELATIONS))
     ap.add_argument("--cache", default=None, help="a model cache folder (the models are trained once)")
+    ap.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="a training setting, e.g. perturbed=8"
+    )
     args = ap.parse_args(argv)
     rels = [r.strip() for r in args.relations.split(",") if r.strip()]
     unknown = sorted(set(rels) - set(PROBLEM_RELATIONS))
     if unknown:
         ap.error(f"--relations: unknown {unknown}; choose from {list(PROBLEM_RELATIONS)}")
     t0 = time.perf_counter()
-    models = R.train_relations(rels, args.seed, R.train_config(), cache=args.cache)
-    print(f"trained {len(rels)} relation models in {time.perf_counter() - t0:.0f} s (seed {args.seed})\n")
+    try:
+        config = build_config({"iterations": R.train_config().iterations}, parse_overrides(args.set))
+    except ConfigError as e:
+        ap.error(str(e))
+    models = R.train_relations(rels, args.seed, config, cache=args.cache)
+    print(f"trained {len(rels)} relation models in {time.perf_counter() - t0:.0f} s (seed {args.seed})")
+    print("settings:", ", ".join(args.set) or "the experiment's", "\n")
     print("| relation | problems | samples accepted | problems solved (any of 10) |")
     print("|---|---:|---:|---:|")
     for rel in rels:
