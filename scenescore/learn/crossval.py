@@ -29,6 +29,11 @@ FOLDS = 3  # the folds cross-validation makes by default: a third of the scenes 
 MIN_SCENES = 6  # fewer scenes are trained on without validation (two per fold at three folds)
 
 
+def _fits(n: int, folds: int) -> bool:
+    """Whether ``n`` scenes make ``folds`` non-empty folds, each fold's model training on 2 or more."""
+    return folds >= 2 and n >= folds and n - math.ceil(n / folds) >= 2
+
+
 def folds_for(n: int, folds: int | None, fraction: float, heldout_given: bool) -> int:
     """How many folds a training of ``n`` scenes validates with, 0 for one hold-out (or none): ``folds``
     when given (1 meaning one hold-out); else :data:`FOLDS` for fewer than :data:`CROSS_VALIDATE_BELOW`
@@ -39,7 +44,7 @@ def folds_for(n: int, folds: int | None, fraction: float, heldout_given: bool) -
         if heldout_given or fraction == 0:
             why = "held-out scenes were given" if heldout_given else "the validation fraction is 0"
             raise SceneError(f"folds={folds}: cross-validation asked for, but {why}")
-        if n < folds or n - math.ceil(n / folds) < 2:
+        if not _fits(n, folds):
             raise SceneError(f"folds={folds}: {n} scenes are too few (each fold's model trains on 2 or more)")
         return folds
     if heldout_given or fraction == 0 or folds is not None:
@@ -52,7 +57,7 @@ def fold_splits(scenes: Sequence[Scene], folds: int, seed: int = 0) -> list[tupl
     parts of sizes differing by at most one, each held out once. ValueError when a part would be empty or
     leave fewer than two scenes to train on."""
     n = len(scenes)
-    if folds < 2 or n // folds < 1 or n - math.ceil(n / folds) < 2:
+    if not _fits(n, folds):
         raise ValueError(f"{n} scenes are too few for {folds}-fold cross-validation")
     order = np.random.default_rng(seed).permutation(n)
     parts = [set(p.tolist()) for p in np.array_split(order, folds)]

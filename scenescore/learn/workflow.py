@@ -1,9 +1,10 @@
 """The training workflow, as ``scenescore train`` runs it and ``ss.train`` returns it (:func:`train_model`).
 
 Hold scenes out, train on the rest, refuse a model that learned nothing, evaluate on the held-out
-scenes (with little data: train on every scene and cross-validate, :mod:`~scenescore.learn.crossval`), draw the learning curve, calibrate what a tidying move must gain, save the checkpoint and the
-report. The command line only reads its files and calls :func:`train_model`, so the model a script
-gets from ``ss.train(scenes, seed=s)`` is the one ``scenescore train data.jsonl --seed s`` saves.
+scenes (with little data: train on every scene and cross-validate, :mod:`~scenescore.learn.crossval`),
+draw the learning curve, calibrate what a tidying move must gain, save the checkpoint and the report.
+The command line only reads its files and calls :func:`train_model`, so the model a script gets from
+``ss.train(scenes, seed=s)`` is the one ``scenescore train data.jsonl --seed s`` saves.
 """
 
 from __future__ import annotations
@@ -97,9 +98,10 @@ def train_model(
     of ``scenes`` is held out by ``seed`` (:func:`holdout`), or, with ``folds`` of 2 or more (by default
     with fewer than :data:`~scenescore.learn.crossval.CROSS_VALIDATE_BELOW` scenes), the model is
     trained on every scene and validated by ``folds``-fold cross-validation, each fold's model trained
-    with ``config`` and ``seed`` (``folds=1``: one hold-out whatever the data's size). The held-out scenes become the trust
-    reference, are placed back object by object (the figures in ``model.info.validation``) and calibrate
-    tidying (``model.info.tidy``; without held-out scenes, the first :data:`TIDY_SCENES` training ones).
+    with ``config`` and ``seed`` (``folds=1``: one hold-out whatever the data's size). The held-out
+    scenes become the trust reference, are placed back object by object (the figures in
+    ``model.info.validation``) and calibrate tidying (``model.info.tidy``; without held-out scenes, the
+    first :data:`TIDY_SCENES` training ones).
     A model whose loss never fell below chance raises :class:`NothingLearned` unless ``force``.
     ``out``: the checkpoint to write, with ``report`` (default ``train_report.json`` beside it) and, for
     held-out scenes split here, ``<out stem>.val.jsonl``; ``plot``: the learning curve and a few
