@@ -11,6 +11,10 @@
    chunk of ``scenescore.memory.CHUNK_BYTES`` as every batch here is, chunks that run the forward pass
    twice): pose sets per second for ``--population`` pose sets of 4 to 12 objects and a fifth as many
    of 20 and 28, the ratio, and the largest difference between the two gradients.
+3. The energy without a gradient (screening candidates), each message layer working in place in one
+   tensor, against the same operations each writing a new tensor (as with a gradient): pose sets per
+   second for 2048 pose sets of 12 and 28 objects (dense graph) and 1024 of 40 (local graph, 6
+   neighbours), the ratio, and whether the energies are equal (they should be, bit for bit).
 
 One thread.
 """
@@ -23,17 +27,58 @@ import time
 import torch
 from torch import Tensor
 
+from scenescore.models.graph import senders
 from scenescore.models.network import EnergyConfig, EnergyNet, MessageLayer
 
 
-def unfolded(layer: MessageLayer, v: Tensor, e: Tensor | None, pair: Tensor) -> Tensor:
+def unfolded(
+    layer: MessageLayer, v: Tensor, e: Tensor | None, pair: Tensor, index: Tensor | None = None
+) -> Tensor:
     """The layer with f's last linear applied to every edge before the masked sum (the old form)."""
-    m = layer.w_i(v)[:, :, None, :] + layer.w_j(v)[:, None, :, :]
+    m = layer.w_i(v)[:, :, None, :] + senders(layer.w_j(v), index)
     if layer.w_e is not None and e is not None:
         m = m + layer.w_e(e)
     if layer.out is not None:
         m = layer.out(layer.act(m))
     return layer.act((m * pair[..., None]).sum(dim=2))
+
+
+def apart(layer: MessageLayer, v: Tensor, e: Tensor | None, pair: Tensor, index: Tensor | None) -> Tensor:
+    """``MessageLayer._summed_in_place`` with each operation writing a new tensor."""
+    m = layer.w_i(v)[:, :, None, :] + senders(layer.w_j(v), index)
+    if layer.w_e is not None and e is not None:
+        m = m + layer.w_e(e)
+    if layer.out is not None:
+        m = layer.act(m)
+    return layer._out((m * pair[..., None]).sum(dim=2), pair)
+
+
+def screening_table(repeat: int) -> None:
+    """Comparison 3 of the module docstring."""
+    print(
+        "\n| objects | graph | pose sets | in place (sets/s) | new tensors (sets/s) | ratio | equal |"
+        "\n|---:|---|---:|---:|---:|---:|---|"
+    )
+    in_place = MessageLayer._summed_in_place
+    for n, b, neighbours in ((12, 2048, None), (28, 2048, None), (40, 1024, 6)):
+        local = {} if neighbours is None else {"neighbours": neighbours, "radius": 6.0}
+        net = EnergyNet(EnergyConfig(feat_dim=7, edge_encoder=32, **local))
+        x, f, sz = torch.rand(b, n, 3) * 3, torch.randn(b, n, 7), torch.rand(b, n, 2)
+        rate: dict[str, list[float]] = {"in place": [], "apart": []}
+        energies = {}
+        for _ in range(2):  # interleaved
+            for name, form in (("in place", in_place), ("apart", apart)):
+                MessageLayer._summed_in_place = form  # type: ignore[method-assign]
+                with torch.no_grad():
+                    t = time.perf_counter()
+                    for _ in range(repeat):
+                        energies[name] = net(x, f, sz)
+                    rate[name].append(b * repeat / (time.perf_counter() - t))
+        MessageLayer._summed_in_place = in_place  # type: ignore[method-assign]
+        fast, slow = max(rate["in place"]), max(rate["apart"])
+        graph = "dense" if neighbours is None else f"local, {neighbours}"
+        same = "yes" if torch.equal(energies["in place"], energies["apart"]) else "no"
+        print(f"| {n} | {graph} | {b} | {fast:,.0f} | {slow:,.0f} | {fast / slow:.2f}x | {same} |")
 
 
 def pose_grad(net: EnergyNet, x: Tensor, f: Tensor, sz: Tensor, weight_grads: bool) -> Tensor:
@@ -97,6 +142,7 @@ def main(argv: list[str] | None = None) -> None:
         MessageLayer.forward = folded  # type: ignore[method-assign]
         print(f"| {n} | {min(new):.3f} | {min(old):.3f} | {min(old) / min(new):.2f}x |")
     pieces_table(net, args.population, max(args.repeat // 2, 1))
+    screening_table(args.repeat)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ import torch
 
 from scenescore.encoders import FootprintEncoder
 from scenescore.models import CheckpointError, ModelInfo, ScoreModel, TidyCalibration, load
+from scenescore.models.network import EnergyConfig, EnergyNet
 from scenescore.scenarios import DiningScenario
 
 pytestmark = pytest.mark.float_order
@@ -44,6 +45,32 @@ def test_energy_invariant_to_rigid_motion_and_permutation(message, activation):
     x2 = x.clone()
     x2[0, 1, :2] += 0.1
     assert not torch.allclose(model.energy(x2, st), e0, atol=1e-6)
+
+
+@pytest.mark.parametrize("message", ["mlp", "linear"])
+@pytest.mark.parametrize("activation", ["silu", "softplus", "leaky_relu"])
+@pytest.mark.parametrize("neighbours", [None, 3])
+def test_energy_without_a_gradient_is_the_energy_with_one_and_leaves_its_inputs_alone(
+    message, activation, neighbours
+):
+    # without a gradient the message layers work in place: the same operations in the same order
+    local = {} if neighbours is None else {"neighbours": neighbours, "radius": 3.0}
+    torch.manual_seed(0)
+    net = EnergyNet(
+        EnergyConfig(feat_dim=5, hidden=16, embed_dim=8, message=message, activation=activation, **local)
+    ).double()
+    g = torch.Generator().manual_seed(2)
+    poses = torch.rand(4, 7, 3, generator=g, dtype=torch.float64) * 2
+    feats = torch.randn(4, 7, 5, generator=g, dtype=torch.float64)
+    sizes = 0.1 + 0.2 * torch.rand(4, 7, 2, generator=g, dtype=torch.float64)
+    mask = torch.ones(4, 7, dtype=torch.bool)
+    mask[1, 5:] = False
+    inputs = [t.clone() for t in (poses, feats, sizes, mask)]
+    with torch.no_grad():
+        e_plain = net(poses, feats, sizes, mask)
+    e_grad = net(poses.clone().requires_grad_(True), feats, sizes, mask)
+    assert torch.equal(e_plain, e_grad.detach())
+    assert all(torch.equal(a, b) for a, b in zip(inputs, (poses, feats, sizes, mask)))
 
 
 def test_abs_ablation_is_permutation_but_not_rigid_invariant():
