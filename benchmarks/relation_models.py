@@ -23,7 +23,7 @@ import time
 import numpy as np
 import torch
 
-from scenescore.cli.train_settings import build_config, parse_overrides
+from scenescore.cli.train_settings import overridden, parse_overrides
 from scenescore.errors import ConfigError
 from scenescore.experiments import relations as R
 from scenescore.scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> None:
         ap.error(f"--relations: unknown {unknown}; choose from {list(PROBLEM_RELATIONS)}")
     t0 = time.perf_counter()
     try:
-        config = build_config({"iterations": R.train_config().iterations}, parse_overrides(args.set))
+        config = overridden(R.train_config(), parse_overrides(args.set))
     except ConfigError as e:
         ap.error(str(e))
     models = R.train_relations(rels, args.seed, config, cache=args.cache)

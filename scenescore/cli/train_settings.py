@@ -15,7 +15,7 @@ from typing import Any
 
 from ..errors import ConfigError, nearest_name
 from ..learn import NetworkConfig, TrainConfig
-from ..sampling import TRAINING, LangevinConfig
+from ..sampling import LangevinConfig
 from ..textfiles import check_yaml_depth, check_yaml_tree, read_text
 
 __all__ = ["setting_keys", "parse_overrides", "read_config", "build_config"]
@@ -131,11 +131,16 @@ def build_config(*layers: Mapping[str, Any]) -> TrainConfig:
     merged: dict[str, Any] = {}
     for layer in layers:
         merged.update(layer)
-    top = {k: v for k, v in merged.items() if "." not in k}
+    return overridden(TrainConfig(), merged)
+
+
+def overridden(cfg: TrainConfig, settings: Mapping[str, Any]) -> TrainConfig:
+    """``cfg`` with ``settings`` (dotted keys for the ``chain`` and ``network`` fields) changed."""
+    top = {k: v for k, v in settings.items() if "." not in k}
     nested = {
-        name: {k.split(".", 1)[1]: v for k, v in merged.items() if k.startswith(name + ".")}
+        name: {k.split(".", 1)[1]: v for k, v in settings.items() if k.startswith(name + ".")}
         for name in NESTED
     }
-    if nested["chain"]:
-        top["chain"] = replace(TRAINING, **nested["chain"])
-    return TrainConfig(**top, network=NetworkConfig(**nested["network"]))
+    chain = replace(top.pop("chain", cfg.chain), **nested["chain"])
+    network = replace(top.pop("network", cfg.network), **nested["network"])
+    return replace(cfg, **top, chain=chain, network=network)

@@ -11,9 +11,9 @@ import torch
 
 from scenescore.cli import build_parser, main
 from scenescore.cli.experiment import EXPERIMENTS, OWN_OPTIONS
-from scenescore.cli.train_settings import build_config, parse_overrides, read_config, setting_keys
+from scenescore.cli.train_settings import build_config, overridden, parse_overrides, read_config, setting_keys
 from scenescore.errors import ConfigError
-from scenescore.learn import TrainConfig
+from scenescore.learn import NetworkConfig, TrainConfig
 from scenescore.models import load
 
 MODEL_COMMANDS = ["train", "evaluate", "place", "tidy", "heatmap", "demo", "solve", "compare", "experiment"]
@@ -215,6 +215,17 @@ def test_config_file_and_precedence(tmp_path):
     (tmp_path / "list.yaml").write_text("- 1\n")
     with pytest.raises(ConfigError, match="mapping"):
         read_config(tmp_path / "list.yaml")
+
+
+def test_settings_change_a_given_config_and_keep_the_rest():
+    base = TrainConfig(iterations=100, negatives=4, network=NetworkConfig(hidden=8))
+    cfg = overridden(base, parse_overrides(["perturbed=8", "chain.steps=12", "network.layers=2"]))
+    assert (cfg.iterations, cfg.negatives, cfg.perturbed) == (100, 4, 8)
+    assert (cfg.network.hidden, cfg.network.layers, cfg.chain.steps) == (8, 2, 12)
+    assert cfg.chain.step_init == base.chain.step_init and base.perturbed == 0  # the base is unchanged
+    assert overridden(base, {}) == base
+    with pytest.raises(ConfigError, match="iterations"):
+        overridden(base, {"iterations": 0})
 
 
 # help texts
