@@ -17,7 +17,7 @@ from multiprocessing import get_context
 from multiprocessing.pool import Pool
 from typing import Any, TypeVar
 
-__all__ = ["worker_pool", "map_in_workers", "default_jobs", "PARENT_POLL_S"]
+__all__ = ["worker_pool", "map_in_workers", "default_jobs", "GPU_WORKER_BYTES", "PARENT_POLL_S"]
 
 T = TypeVar("T")
 Log = Callable[[str], None]
@@ -36,14 +36,27 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
+#: GPU memory one worker process is given on a shared CUDA device: its CUDA context and the batches of
+#: one training or placement at the defaults, with room to spare
+GPU_WORKER_BYTES = 2 * 1024**3
+
+
 def default_jobs(device: Any = None) -> int:
-    """Worker processes an experiment runs in when not told: one per usable core on the CPU, one where
-    the work goes to an accelerator (its processes would share one device and its memory)."""
+    """Worker processes an experiment runs in when not told: one per usable core on the CPU; on a CUDA
+    device, processes sharing it, as many as its free memory holds at :data:`GPU_WORKER_BYTES` each and
+    at most one per usable core (each drives the device from its own core: one process's small batches
+    leave a GPU idle); one on any other accelerator."""
     from .threads import usable_cores
 
-    if device is not None and getattr(device, "type", str(device)) != "cpu":
-        return 1
-    return usable_cores()
+    kind = "cpu" if device is None else getattr(device, "type", str(device))
+    if kind == "cpu":
+        return usable_cores()
+    if kind == "cuda":
+        import torch
+
+        free, _ = torch.cuda.mem_get_info(device)
+        return max(1, min(usable_cores(), int(free // GPU_WORKER_BYTES)))
+    return 1
 
 
 @contextmanager

@@ -93,7 +93,21 @@ def test_default_jobs_is_one_per_usable_core_on_the_cpu(monkeypatch):
     monkeypatch.setattr(threads, "_cpus", lambda: {0, 3, 5})  # the affinity, not the machine's count
     assert threads.usable_cores() == 3
     assert default_jobs() == 3 and default_jobs(torch.device("cpu")) == 3
-    assert default_jobs(torch.device("cuda", 0)) == 1  # one accelerator: its processes would share it
+    assert default_jobs(torch.device("mps")) == 1
+
+
+@pytest.mark.parametrize("free_gib, jobs", [(100, 3), (4.5, 2), (1, 1)])
+def test_default_jobs_share_a_cuda_device_as_its_free_memory_allows(monkeypatch, free_gib, jobs):
+    import torch
+
+    from scenescore import threads
+    from scenescore.workers import default_jobs
+
+    monkeypatch.setattr(threads, "_cpus", lambda: {0, 3, 5})
+    monkeypatch.setattr(
+        torch.cuda, "mem_get_info", lambda device=None: (int(free_gib * 1024**3), 80 * 1024**3)
+    )
+    assert default_jobs(torch.device("cuda", 0)) == jobs  # at most one per usable core, 2 GiB each
 
 
 def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tmp_path):

@@ -83,7 +83,8 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         "--jobs",
         type=JOBS,
         default=None,
-        help="worker processes, one thread each (default: one per usable core, 1 with --device cuda; "
+        help="worker processes, one thread each (default: one per usable core; with --device cuda, as many "
+        "sharing the GPU as its free memory holds at 2 GiB each, at most one per usable core; "
         "1 runs everything in this process): compose, heatmap, missing, novel and relations run their seeds in them, zoo its "
         "scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
     )
@@ -267,8 +268,13 @@ def run(args: argparse.Namespace) -> int:
         from ..workers import default_jobs
 
         args.jobs = default_jobs(args.device)
-        if args.jobs > 1:
+        if args.jobs > 1 and args.device.type == "cpu":
             print(f"experiment: {args.jobs} worker processes, one per usable core (--jobs 1: one process)")
+        elif args.jobs > 1:
+            print(
+                f"experiment: {args.jobs} worker processes sharing {args.device}, as many as its free memory "
+                "holds and at most one per usable core (--jobs 1: one process)"
+            )
     args.model_cache = None  # the folder every runner passes to training as its model cache
     if args.name != "all":
         return _run_each(args, [args.name])
