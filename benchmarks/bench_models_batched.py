@@ -68,7 +68,7 @@ def one_iteration(model: Plain, w: dict[str, Tensor], steps: int) -> None:
     """One model's iteration, as training runs it: pose gradients, then the weights' gradient."""
     for _ in range(steps):
         x = w["chain"].clone().requires_grad_(True)
-        (g,) = torch.autograd.grad(model(x, w["feats"], w["sizes"]).sum(), x)
+        torch.autograd.grad(model(x, w["feats"], w["sizes"]).sum(), x)
     e = model(w["loss"], w["feats"], w["sizes"])
     torch.autograd.grad(e.logsumexp(0), list(model.parameters()))
 

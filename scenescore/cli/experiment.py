@@ -268,13 +268,13 @@ def run(args: argparse.Namespace) -> int:
         from ..workers import default_jobs
 
         args.jobs = default_jobs(args.device)
-        if args.jobs > 1 and args.device.type == "cpu":
-            print(f"experiment: {args.jobs} worker processes, one per usable core (--jobs 1: one process)")
-        elif args.jobs > 1:
-            print(
-                f"experiment: {args.jobs} worker processes sharing {args.device}, as many as its free memory "
-                "holds and at most one per usable core (--jobs 1: one process)"
-            )
+        if args.jobs > 1:
+            how = "one per usable core"
+            if args.device.type != "cpu":
+                how = (
+                    f"sharing {args.device}, as many as its free memory holds and at most one per usable core"
+                )
+            print(f"experiment: {args.jobs} worker processes, {how} (--jobs 1: one process)")
     args.model_cache = None  # the folder every runner passes to training as its model cache
     if args.name != "all":
         return _run_each(args, [args.name])

@@ -18,7 +18,7 @@ from ..learn import NetworkConfig, TrainConfig
 from ..sampling import LangevinConfig
 from ..textfiles import check_yaml_depth, check_yaml_tree, read_text
 
-__all__ = ["setting_keys", "parse_overrides", "read_config", "build_config"]
+__all__ = ["setting_keys", "parse_overrides", "read_config", "build_config", "overridden"]
 
 NESTED = {"network": NetworkConfig, "chain": LangevinConfig}  # TrainConfig fields that are dataclasses
 

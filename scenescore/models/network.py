@@ -202,23 +202,26 @@ class MessageLayer(nn.Module):
         # f's last linear is moved out of the sum over j (it is linear): sum_j p_ij (W a_ij + b) =
         # W (sum_j p_ij a_ij) + b deg_i, so the (B, N, N, H) tensors are the first layer's and its
         # activation only
-        if not torch.is_grad_enabled():
-            return self.act(self._summed_in_place(v, e, pair_mask, index))
+        summed = self._summed if torch.is_grad_enabled() else self._summed_in_place
+        return self.act(summed(v, e, pair_mask, index))
+
+    def _summed(self, v: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None) -> Tensor:
+        """:meth:`forward`'s sum before its activation, each operation writing a new tensor (autograd
+        keeps them for the backward pass)."""
         m = self.w_i(v)[:, :, None, :] + senders(self.w_j(v), index)  # (B, N, N or S, H)
         if self.w_e is not None and e is not None:
             m = m + self.w_e(e)
         if self.out is not None:
             m = self.act(m)
-        s = (m * pair_mask[..., None]).sum(dim=2)  # (B, N, H): sum_j p_ij m_ij
-        return self.act(self._out(s, pair_mask))
+        return self._out((m * pair_mask[..., None]).sum(dim=2), pair_mask)  # sum_j p_ij m_ij
 
     def _summed_in_place(
         self, v: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None
     ) -> Tensor:
-        """:meth:`forward`'s sum before its activation, without a gradient: the same operations in the
-        same order (the same numbers), each written into the one ``(B, N, N or S, H)`` tensor, which
-        saves writing and reading several (``python benchmarks/bench_network.py``, table 3). With a
-        gradient the tensors stay apart: in place there measured slower."""
+        """:meth:`_summed` without a gradient: the same operations in the same order (the same numbers),
+        each written into the one ``(B, N, N or S, H)`` tensor, which saves writing and reading several
+        (``python benchmarks/bench_network.py``, table 3). With a gradient the tensors stay apart: in
+        place there measured slower."""
         w_i, m = self.w_i(v)[:, :, None, :], senders(self.w_j(v), index)
         m = w_i + m if index is None else m.add_(w_i)  # a dense graph's senders are a broadcast view
         if self.w_e is not None and e is not None:
