@@ -15,10 +15,12 @@ from ..geometry import compose_poses
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
 from ..models.model import with_walls
+from ..models.rivals import rivals
 from ..models.trust import Assessment, assess, outside_data
 from ..scene import Scene
+from ..units import length_unit
 from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
-from .guide import Guide
+from .guide import Alternatives, Guide
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
 
 __all__ = ["LearnedEnergy", "EnergySpec"]
@@ -118,6 +120,27 @@ class LearnedEnergy(Cost, Guide):
             return {}
         scene = self.visible_scene.with_poses(np.asarray(poses)[vis])
         return assess(ref, self.model, scene, moving)
+
+    def rivals(self, poses: np.ndarray, alternatives: Alternatives) -> dict[str, str]:
+        """The moving objects that another of the ``alternatives`` puts more than
+        :data:`~scenescore.models.rivals.RIVAL_DISTANCE` length scales away for at most
+        :data:`~scenescore.models.rivals.RIVAL_MARGIN` more cost (:func:`~scenescore.models.rivals.rivals`;
+        objects of one category matched), each with its ``rival: ...`` reason."""
+        if self.visible_scene is None:
+            return {}
+        moving = self._moving()
+        if not moving:
+            return {}
+        idx = [self.binding.scene.index(n) for n in moving]
+        found = rivals(
+            np.asarray(poses)[idx],
+            np.asarray(alternatives.poses)[:, idx],
+            alternatives.margins,
+            [self.binding.scene[n].category for n in moving],
+            float(self.model.config.length_scale),
+        )
+        unit = length_unit(self.visible_scene)
+        return {moving[k]: r.reason(unit) for k, r in found.items()}
 
     def doubts(self, poses: Tensor) -> Tensor | None:
         """Rows that put a moving object the energy sees where the model's data never had one of its

@@ -3,8 +3,10 @@
 A term that subclasses :class:`Guide` beside :class:`~scenescore.costs.base.Cost` may *propose*
 candidate poses (solvers screen them beside uniform draws), *doubt* pose sets (solvers that are asked
 to rank the doubted ones after the others do so before they rank by cost), and give each moving
-object a *verdict* (a confidence and the reasons to doubt it, reported with every result). Each
-method's default says nothing, so a guide overrides only what it knows.
+object a *verdict* (a confidence and the reasons to doubt it, reported with every result), and name
+the *rivals* of an answer among the other answers a sampling solver found (:class:`Alternatives`:
+another place, far off, that costs nearly as little). Each method's default says nothing, so a guide
+overrides only what it knows.
 
 Solvers and problems ask a whole cost through the functions of this module (:func:`propose`,
 :func:`doubts`, :func:`verdicts`, :func:`doubt_note`), which ask the sum's guiding terms in order;
@@ -16,6 +18,7 @@ poses its training data has.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -24,7 +27,7 @@ from torch import Tensor
 
 from .base import Sum
 
-__all__ = ["Guide", "Verdict", "guides", "propose", "doubts", "verdicts", "doubt_note"]
+__all__ = ["Guide", "Verdict", "Alternatives", "guides", "propose", "doubts", "verdicts", "doubt_note"]
 
 
 class Verdict(Protocol):
@@ -37,6 +40,16 @@ class Verdict(Protocol):
     def to_dict(self) -> dict[str, Any]:
         """``{"confidence": ..., "flags": [...]}`` for a result's JSON."""
         ...
+
+
+@dataclass(frozen=True)
+class Alternatives:
+    """The other answers a sampling solver found: pose sets ``poses (B, N, 3)`` that satisfy the
+    constraints and that no guide doubts, and their ``margins (B,)``: each one's cost minus the
+    answer's (the objective's units)."""
+
+    poses: np.ndarray
+    margins: np.ndarray
 
 
 class Guide:
@@ -56,6 +69,11 @@ class Guide:
 
     def verdicts(self, poses: np.ndarray) -> Mapping[str, Verdict]:
         """A verdict on each moving object this term judges at one pose set ``(N, 3)``, by name."""
+        return {}
+
+    def rivals(self, poses: np.ndarray, alternatives: Alternatives) -> Mapping[str, str]:
+        """Why to doubt moving objects of the answer ``poses (N, 3)`` given the ``alternatives``: a
+        reason by object name (an object this term gives a verdict on); {}: none."""
         return {}
 
 
@@ -82,10 +100,19 @@ def doubts(cost: Sum, poses: Tensor) -> Tensor | None:
     return torch.stack(flags, dim=-1).any(-1)
 
 
-def verdicts(cost: Sum, poses: np.ndarray) -> dict[str, Verdict]:
+def verdicts(cost: Sum, poses: np.ndarray, alternatives: Alternatives | None = None) -> dict[str, Verdict]:
     """Every guide's verdicts at one pose set ``(N, 3)``, by object name (a later guide's verdict on
-    an object replaces an earlier one's)."""
-    return {k: v for g in guides(cost) for k, v in g.verdicts(poses).items()}
+    an object replaces an earlier one's); with ``alternatives``, each guide's rivals added to the flags
+    of the objects it gives verdicts on."""
+    out: dict[str, Verdict] = {}
+    for g in guides(cost):
+        mine = dict(g.verdicts(poses))
+        if alternatives is not None and len(alternatives.margins) and mine:
+            for name, reason in g.rivals(poses, alternatives).items():
+                if name in mine:
+                    mine[name].flags.append(reason)
+        out.update(mine)
+    return out
 
 
 def doubt_note(cost: Sum) -> str:

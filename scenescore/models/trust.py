@@ -24,6 +24,9 @@ with the reason, when
 - the model's held-out evaluation found it unlearned: a held-out loss not below chance, or the object's
   category placed no better than nearest neighbour (``validation``; the model's ``info.caveats``).
 
+A sampling solver's result adds one more (:mod:`scenescore.models.rivals`): another particle puts the
+object far away for nearly the same cost (``rival``).
+
 It also keeps where the training data puts each category relative to each other one
 (:func:`relations`), from which placement draws candidate poses beside the scene's known objects
 (:meth:`TrustReference.anchored`).

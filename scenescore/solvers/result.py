@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..costs.guide import Verdict, verdicts
+from ..costs.guide import Alternatives, Verdict, verdicts
 from ..problem import FEASIBILITY_TOL, Problem
 from ..scene import Scene, atomic_write_text
 
@@ -175,6 +175,25 @@ def _numpy(a: np.ndarray | torch.Tensor) -> np.ndarray:
     return np.asarray(a, dtype=float)
 
 
+def _alternatives(
+    problem: Problem,
+    samples: np.ndarray | torch.Tensor | None,
+    costs: np.ndarray | torch.Tensor | None,
+    objective: float,
+    tol: float,
+) -> Alternatives | None:
+    """The samples that satisfy the constraints within ``tol`` and that no guide doubts, with their
+    cost's margin over the answer's ``objective``; None without samples and their costs."""
+    if samples is None or costs is None or not math.isfinite(objective):
+        return None
+    x = problem.full(samples)
+    with torch.no_grad():
+        keep = (problem.violation(x) <= tol) & ~problem.doubted(x)
+    margins = _numpy(costs) - objective
+    keep_np = keep.cpu().numpy() & np.isfinite(margins)
+    return Alternatives(_numpy(x)[keep_np], margins[keep_np])
+
+
 def make_result(
     problem: Problem,
     solver: str,
@@ -212,7 +231,8 @@ def make_result(
             max_v, violated = w[1], f"{c.name}: {w[0]}"
     feas = problem.check(x[0], tol)
     pose_np = _numpy(x[0])
-    confidence = verdicts(problem.cost, pose_np)
+    alternatives = _alternatives(problem, samples, sample_costs, objective, tol)
+    confidence = verdicts(problem.cost, pose_np, alternatives)
     success = status.ok and max_v <= tol and math.isfinite(objective)
     if status == Status.CONVERGED and max_v > tol:
         status = Status.INFEASIBLE  # a status never says converged beside a violated constraint
