@@ -58,13 +58,14 @@ def run(args: argparse.Namespace) -> int:
     cfg = cfg if args.particles is None else replace(cfg, particles=args.particles)
     filled = place(model, scene, cfg, seed=args.seed, energy_only=args.energy_only)
     trust = filled.meta.get("placement", {})
+    unit = scene.meta.get("unit") or "(data units)"  # lengths as the scene's file gives them
     for n in names:
         pose = filled[n].pose
         assert pose is not None
         x, y, t = pose
         conf = trust.get(n, {}).get("confidence")
         print(
-            f"{n:20s} x={x:+.3f} m  y={y:+.3f} m  theta={t:+.3f} rad"
+            f"{n:20s} x={x:+.4g} y={y:+.4g} {unit}  theta={t:+.3f} rad"
             + ("" if conf is None else f"  confidence {conf:.2f}")
         )
     for n in names:

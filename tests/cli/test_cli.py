@@ -55,7 +55,16 @@ def test_generate_train_place(trained, capsys):
     filled = json.loads((d / "f.json").read_text())
     assert all(o["pose"] is not None for o in filled["objects"])
     assert (d / "f.png").read_bytes()[:4] == b"\x89PNG"
-    assert "x=" in capsys.readouterr().out
+    name = scene["objects"][1]["name"]
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith(name))
+    pose = json.loads((d / "f.json").read_text())["objects"][1]["pose"]
+    assert f"x={pose[0]:+.4g} y={pose[1]:+.4g} m  theta=" in line  # generated data names metres
+    meta = {k: v for k, v in scene.get("meta", {}).items() if k != "unit"}
+    for unit, said in (("mm", " mm  theta="), (None, " (data units)  theta=")):
+        q = {**scene, "meta": {**meta, "unit": unit} if unit else meta}
+        (d / "q_unit.json").write_text(json.dumps(q))
+        assert main(["place", str(d / "m.ckpt"), str(d / "q_unit.json"), "--particles", "8", "--quiet"]) == 0
+        assert said in capsys.readouterr().out
     # the paper's protocol places by the energy alone; an overlap left is named by the exact check
     from scenescore.models import load
     from scenescore.placement import overlapping
@@ -63,7 +72,6 @@ def test_generate_train_place(trained, capsys):
 
     rc = main(["place", str(d / "m.ckpt"), str(d / "q.json"), "--energy-only", "--out", str(d / "e.json")])
     assert rc == 0
-    name = scene["objects"][1]["name"]
     left = overlapping(load(d / "m.ckpt"), Scene.from_json(d / "e.json"), [name])
     err = capsys.readouterr().err
     assert all(f"{a}: overlaps {b} (exact check)" in err for a, b in left)

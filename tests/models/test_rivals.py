@@ -42,7 +42,7 @@ def test_a_rival_is_far_and_nearly_as_cheap():
     assert set(got) == {0}
     assert got[0].distance == pytest.approx(far) and got[0].margin == pytest.approx(0.1)
     assert "0.4 m away" in got[0].reason() and "costs only 0.1 more" in got[0].reason()
-    assert rivals(answer, others, np.full(5, 1.0), ["book", "lamp"], L) == {}
+    assert rivals(answer, others, np.full(5, RIVAL_MARGIN + 0.5), ["book", "lamp"], L) == {}
 
 
 @pytest.fixture(scope="module")
