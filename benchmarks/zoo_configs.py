@@ -11,13 +11,15 @@ gives the mean, median and worst position error, the catastrophic count (more th
 means off), the ratio to the oracle, the misses split into the search's and the energy's, and the trust
 check's flags: the share of all placements flagged, of the good ones (within 3 oracle means), and how
 many of the catastrophic ones were flagged. A last line per config counts the scenarios within 3x the
-oracle and the catastrophic placements in all. ``--cache DIR`` keeps the trained models there for
+oracle and the catastrophic placements in all, and one more pools the trust check over the scenarios:
+the catastrophic placements flagged (and how many by the ``rival`` flag) and the good ones flagged. ``--cache DIR`` keeps the trained models there for
 every config and later runs: an ensemble's first member is the single model of its seed, so
 ``--configs '[{"members": 3}, {}]'`` trains the single models once. ``--train-scenes 12``: the zoo's
 small-data variant.
 ``--place`` changes placement's options for every config (a JSON object of ``LangevinOptions`` fields
 over ``scenescore.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
-case's record as ``DIR/config-K.json``.
+case's record as ``DIR/config-K.json``; ``--records DIR/config-K.json`` prints that pooled trust line
+from such a file again, without running anything.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from scenescore.experiments.zoo import catastrophic, run
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
@@ -57,7 +61,11 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="keep each config's per-case records here")
     ap.add_argument("--cache", type=Path, default=None, help="a model cache folder shared by the configs")
     ap.add_argument("--train-scenes", type=int, default=None, help="train on the first N training scenes")
+    ap.add_argument("--records", type=Path, default=None, help="print the pooled trust line of an --out file")
     args = ap.parse_args()
+    if args.records is not None:
+        print(trust_line(json.loads(args.records.read_text(encoding="utf-8"))["cases"]))
+        return
     configs = json.loads(args.configs)
     scenarios = [s for s in args.scenarios.split(",") if s]
     place = None if args.place is None else replace(PLACE, **json.loads(args.place))
@@ -103,11 +111,32 @@ def main() -> None:
         cat = sum(r.figures["catastrophic"] for r in rows)
         summary.append(
             f"`{label}`: {within} of {len(rows)} scenarios within 3x the oracle, {cat} catastrophic "
-            f"({time.perf_counter() - t0:.0f} s)"
+            f"({time.perf_counter() - t0:.0f} s); {trust_line(res.per_case)}"
         )
     print()
     for line in summary:
         print(line)
+
+
+def trust_line(per_case: dict[str, list[dict]]) -> str:
+    """The trust check pooled over every scenario's case records: the catastrophic placements flagged,
+    those the ``rival`` flag is among the flags of, and the good ones (within 3 of their scenario's
+    oracle means) flagged."""
+    bad = flagged = rival = good = good_flagged = 0
+    for cases in per_case.values():
+        t = np.array([c["t_cm"] for c in cases])
+        om = float(np.mean([c["oracle_t_cm"] for c in cases]))
+        for c, b, g in zip(cases, catastrophic(cases), t <= 3 * max(om, 1e-9)):
+            bad += int(b)
+            flagged += int(b and c["flagged"])
+            rival += int(b and any(f.startswith("rival:") for f in c["flags"]))
+            good += int(g)
+            good_flagged += int(g and c["flagged"])
+    share = good_flagged / good if good else 0.0
+    return (
+        f"flagged: {flagged} of {bad} catastrophic ({rival} by rival), "
+        f"{good_flagged} of {good} good ({100 * share:.1f}%)"
+    )
 
 
 def _bad_flagged(cases: list[dict]) -> str:

@@ -25,10 +25,8 @@ __all__ = ["RIVAL_DISTANCE", "RIVAL_MARGIN", "Rival", "matched_distances", "riva
 #: length scales: a particle that puts an object this far from the answer's place is another answer
 RIVAL_DISTANCE = 2.0
 #: the most a rival may cost above the answer (the objective's units; for placement the learned
-#: energy's, where a margin m means the model finds the rival exp(-m) times as likely). On the zoo's ten
-#: table tops over 3 seeds, 1 flagged 1 of 1 catastrophic placements at 48 training scenes and 10 of 14
-#: (with the other flags) at 12, and 1.4% and 3.6% of the placements within 3 oracle means; 1.5 flagged
-#: 11 of 14 at 12 scenes but 5.5% of the good ones (docs/studies.md)
+#: energy's, where a margin m means the model finds the rival exp(-m) times as likely); what it flags on
+#: the zoo is in docs/studies.md ("The trust check on the zoo")
 RIVAL_MARGIN = 1.0
 
 
