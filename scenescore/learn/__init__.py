@@ -14,7 +14,7 @@
   imported here: it sits above the evaluation and the tidy planner, which import this package).
 """
 
-from .config import LOCAL_FROM, RAW_EDGES, Derived, NetworkConfig, TrainConfig, derive
+from .config import LOCAL_FROM, LR_DENSE, LR_LOCAL, RAW_EDGES, Derived, NetworkConfig, TrainConfig, derive
 from .data import (
     VALIDATION_FRACTION,
     check_training_data,
@@ -44,6 +44,8 @@ __all__ = [
     "data_scale",
     "local_radius",
     "LOCAL_FROM",
+    "LR_DENSE",
+    "LR_LOCAL",
     "stands_against_walls",
     "check_training_data",
     "split_validation",

@@ -16,7 +16,17 @@ from ..sampling import TRAINING, LangevinConfig
 from ..scene import Scene
 from .data import data_scale, local_radius, stands_against_walls
 
-__all__ = ["NetworkConfig", "TrainConfig", "RAW_EDGES", "Derived", "derive", "LOCAL_FROM", "Graph"]
+__all__ = [
+    "NetworkConfig",
+    "TrainConfig",
+    "RAW_EDGES",
+    "Derived",
+    "derive",
+    "LOCAL_FROM",
+    "LR_DENSE",
+    "LR_LOCAL",
+    "Graph",
+]
 
 Graph = Literal["auto", "dense", "local"]
 #: ``graph="auto"`` gives data whose largest scene has more objects than this (walls included) a local
@@ -24,6 +34,11 @@ Graph = Literal["auto", "dense", "local"]
 #: benchmarks/bench_rooms.py``), but the table-top scenarios of up to 25 objects keep the dense graph
 #: their figures were measured with
 LOCAL_FROM = 32
+#: the learning rate where ``TrainConfig.lr`` is None: the dense graph's, and the local graph's (a room's
+#: 600 iterations at 2e-3 left zoo-classroom's chairs 3.04 oracle means off over 3 seeds, at 4e-3 2.70;
+#: docs/studies.md)
+LR_DENSE = 2e-3
+LR_LOCAL = 4e-3
 
 
 @dataclass
@@ -76,7 +91,8 @@ class TrainConfig:
     size_noise: float = 0.3
     full_fraction: float = 0.3  # chains moving every object
     single_fraction: float = 0.5  # chains moving one object (the rest: a random subset)
-    lr: float = 2e-3
+    # AdamW's learning rate; None: LR_DENSE for the dense graph, LR_LOCAL for the local one (derive)
+    lr: float | None = None
     lr_final: float = 2e-4  # cosine decay to this
     weight_decay: float = 0.0  # AdamW's decoupled weight decay
     energy_reg: float = 1e-3  # small L2 on energies, keeps them bounded
@@ -152,7 +168,8 @@ class TrainConfig:
                 f"{own}: full_fraction + single_fraction: expected at most 1, got "
                 f"{self.full_fraction} + {self.single_fraction}"
             )
-        check_number(own, "lr", self.lr, 0, open_lo=True)
+        if self.lr is not None:
+            check_number(own, "lr", self.lr, 0, open_lo=True)
         for name in (
             "lr_final",
             "weight_decay",
@@ -196,14 +213,15 @@ class Derived:
     averaged_from: int  # the first iteration in the weights' moving average
     decay: float  # the moving average's decay (0: the last iterate)
     candidates: int  # what InfoNCE tells each true scene apart from, the scene itself included
+    lr: float  # the learning rate: the setting, else the graph's (LR_DENSE, LR_LOCAL)
 
 
 def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = None) -> Derived:
     """Everything a run of ``cfg`` on ``scenes`` decides from the data or from other settings: the length
     scale (the data's unless set), the edge range (the data's largest offset with ``saturate_edges``),
     the walls (where the data stands against its bounds, unless set) and the wall settings that apply
-    only with them, the graph (local for rooms, its radius the data's), the encoder reading sizes in
-    the data's unit, the batch, the chains' schedule and the averaging.
+    only with them, the graph (local for rooms, its radius the data's) and its learning rate unless
+    set, the encoder reading sizes in the data's unit, the batch, the chains' schedule and the averaging.
 
     A local graph's length scale is that of the objects to place (the data's movable ones): the
     network tells offsets apart to a fraction of a length scale, and in a room the fixed furniture
@@ -240,4 +258,5 @@ def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = 
         averaged_from=averaged_from,
         decay=max(min(cfg.average, 1 - 3 / max(cfg.iterations - averaged_from, 1)), 0.0),
         candidates=cfg.negatives + cfg.perturbed + cfg.reanchored + 1,
+        lr=cfg.lr if cfg.lr is not None else (LR_LOCAL if local else LR_DENSE),
     )

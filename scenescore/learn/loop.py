@@ -204,7 +204,7 @@ def fit(
     model = ScoreModel(EnergyNet(d.energy), d.encoder).to(device)
     data = model.tensors(scenes)
     buf = ChainBuffer(data, cfg.negatives, cfg, gen)
-    opt = torch.optim.AdamW(model.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    opt = torch.optim.AdamW(model.net.parameters(), lr=d.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(
         opt, T_max=max(cfg.iterations, 1), eta_min=cfg.lr_final
     )

@@ -9,7 +9,7 @@ import torch
 
 import scenescore as ss
 from scenescore.errors import ConfigError
-from scenescore.learn import LOCAL_FROM, TrainConfig, derive, local_radius
+from scenescore.learn import LOCAL_FROM, LR_DENSE, LR_LOCAL, TrainConfig, derive, local_radius
 from scenescore.models.export import export_onnx
 from scenescore.models.graph import fade, neighbour_graph
 from scenescore.models.network import EnergyConfig, EnergyNet
@@ -123,6 +123,15 @@ def test_training_chooses_the_graph_from_the_data_and_scales_its_radius_with_the
     # the length scale of the objects to place (the chairs), not the fixed desks
     assert big.length_scale == pytest.approx(max(ClassroomScenario().chair) / 2)
     assert derive(TrainConfig(), small).energy.length_scale > big.length_scale
+
+
+def test_the_learning_rate_is_the_graphs_unless_set():
+    room = ClassroomScenario().generate(6, 0)
+    small = ClassroomScenario(desks=(5, 5)).generate(6, 0)
+    assert derive(TrainConfig(), room).lr == LR_LOCAL and derive(TrainConfig(), small).lr == LR_DENSE
+    assert derive(TrainConfig(graph="local"), small).lr == LR_LOCAL
+    assert derive(TrainConfig(graph="dense"), room).lr == LR_DENSE
+    assert derive(TrainConfig(lr=1e-3), room).lr == 1e-3 and derive(TrainConfig(lr=1e-3), small).lr == 1e-3
 
 
 def test_a_local_model_round_trips_its_graph_and_refuses_onnx_export(tmp_path):
