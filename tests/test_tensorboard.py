@@ -12,7 +12,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from scenescore.cli import main  # noqa: E402
 from scenescore.errors import ConfigError  # noqa: E402
-from scenescore.learn import NetworkConfig, TrainConfig, log_validation, train  # noqa: E402
+from scenescore.learn import LR_DENSE, NetworkConfig, TrainConfig, log_validation, train  # noqa: E402
 from scenescore.scenarios import get  # noqa: E402
 from scenescore.scene import write_jsonl  # noqa: E402
 
@@ -34,7 +34,9 @@ def test_training_logs_loss_and_lr_every_iteration(tmp_path):
     assert [step for step, _ in s["train/loss"]] == [0, 1, 2, 3]
     assert [step for step, _ in s["train/infonce"]] == [0, 1, 2, 3]
     lrs = [v for _, v in s["train/lr"]]
-    assert lrs[0] == pytest.approx(CFG.lr) and lrs == sorted(lrs, reverse=True)  # cosine decay
+    assert lrs[0] == pytest.approx(LR_DENSE) and lrs == sorted(
+        lrs, reverse=True
+    )  # the dense graph's, decaying
     # the logged losses are the ones training records (its history: means of blocks of 10)
     mean = sum(v for _, v in s["train/loss"]) / 4
     assert mean == pytest.approx(model.info.history[0], abs=1e-4)
