@@ -31,9 +31,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
-from scenescore.experiments.zoo import catastrophic, run
+from scenescore.experiments.zoo import catastrophic, good, run
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
@@ -120,22 +118,19 @@ def main() -> None:
 
 def trust_line(per_case: dict[str, list[dict]]) -> str:
     """The trust check pooled over every scenario's case records: the catastrophic placements flagged,
-    those the ``rival`` flag is among the flags of, and the good ones (within 3 of their scenario's
-    oracle means) flagged."""
-    bad = flagged = rival = good = good_flagged = 0
+    those the ``rival`` flag is among the flags of, and the good ones (:func:`good`) flagged."""
+    bad = flagged = rival = n_good = good_flagged = 0
     for cases in per_case.values():
-        t = np.array([c["t_cm"] for c in cases])
-        om = float(np.mean([c["oracle_t_cm"] for c in cases]))
-        for c, b, g in zip(cases, catastrophic(cases), t <= 3 * max(om, 1e-9)):
+        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
             bad += int(b)
             flagged += int(b and c["flagged"])
             rival += int(b and any(f.startswith("rival:") for f in c["flags"]))
-            good += int(g)
+            n_good += int(g)
             good_flagged += int(g and c["flagged"])
-    share = good_flagged / good if good else 0.0
+    share = good_flagged / n_good if n_good else 0.0
     return (
         f"flagged: {flagged} of {bad} catastrophic ({rival} by rival), "
-        f"{good_flagged} of {good} good ({100 * share:.1f}%)"
+        f"{good_flagged} of {n_good} good ({100 * share:.1f}%)"
     )
 
 

@@ -46,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from ..placement import PLACE, covering, overlapping, place
     from ..plot import plot_scene
     from ..scene import Scene
+    from ..units import UNITS, length_unit
     from . import UserError, device_of, model_of
 
     device = device_of(args)
@@ -58,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
     cfg = cfg if args.particles is None else replace(cfg, particles=args.particles)
     filled = place(model, scene, cfg, seed=args.seed, energy_only=args.energy_only)
     trust = filled.meta.get("placement", {})
-    unit = scene.meta.get("unit") or "(data units)"  # lengths as the scene's file gives them
+    unit = length_unit(scene)  # lengths as the scene's file gives them
+    unit = unit if unit in UNITS else f"({unit})"
     for n in names:
         pose = filled[n].pose
         assert pose is not None

@@ -49,10 +49,13 @@ __all__ = [
     "CATASTROPHIC_CM",
     "CATASTROPHIC_ORACLE",
     "catastrophic",
+    "good",
+    "GOOD_ORACLE",
 ]
 
 CATASTROPHIC_CM = 25.0  # a placement is catastrophic when it is this far off ...
 CATASTROPHIC_ORACLE = 10.0  # ... and this many oracle means
+GOOD_ORACLE = 3.0  # a placement is good within this many oracle means
 
 
 def zoo_cases(scenario: Any, test: list[Scene], seed: int) -> list[MissingCase]:
@@ -109,7 +112,7 @@ class ZooResult:
             ro = np.array([c["oracle_R_deg"] for c in cases if c["oracle_R_deg"] is not None])
             om = float(o.mean())
             cat = int(np.sum(catastrophic(cases)))
-            good = t <= 3 * max(om, 1e-9)
+            ok = good(cases)
             flags = np.array([c["flagged"] for c in cases])
             # a miss (beyond 3 oracle means) is the search's when the truth has the lower energy
             search = np.array([c["energy_truth"] < c["energy"] for c in cases])
@@ -126,10 +129,10 @@ class ZooResult:
                 "oracle_t_cm": om,
                 "oracle_R_deg": float(ro.mean()) if ro.size else math.nan,
                 "ratio": float(t.mean() / max(om, 1e-9)),
-                "miss_search": int(np.sum(~good & search)),
-                "miss_energy": int(np.sum(~good & ~search)),
+                "miss_search": int(np.sum(~ok & search)),
+                "miss_energy": int(np.sum(~ok & ~search)),
                 "flag_rate": float(flags.mean()),
-                "flag_rate_good": float(flags[good].mean()) if good.any() else 0.0,
+                "flag_rate_good": float(flags[ok].mean()) if ok.any() else 0.0,
                 "seconds": self.seconds.get(name, 0.0),
             }
             out.append(Row(name, figs))
@@ -142,6 +145,14 @@ def catastrophic(cases: Sequence[dict[str, Any]]) -> np.ndarray:
     t = np.array([c["t_cm"] for c in cases])
     om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
     return (t > CATASTROPHIC_CM) & (t > CATASTROPHIC_ORACLE * om)
+
+
+def good(cases: Sequence[dict[str, Any]]) -> np.ndarray:
+    """Which of one scenario's case records are good: within :data:`GOOD_ORACLE` oracle means (the
+    scenario's mean oracle error)."""
+    t = np.array([c["t_cm"] for c in cases])
+    om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
+    return t <= GOOD_ORACLE * max(om, 1e-9)
 
 
 def place_back(

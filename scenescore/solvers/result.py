@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..costs.guide import Alternatives, Verdict, verdicts
+from ..costs.guide import Alternatives, Verdict, guides, verdicts
 from ..problem import FEASIBILITY_TOL, Problem
 from ..scene import Scene, atomic_write_text
 
@@ -183,8 +183,9 @@ def _alternatives(
     tol: float,
 ) -> Alternatives | None:
     """The samples that satisfy the constraints within ``tol`` and that no guide doubts, with their
-    cost's margin over the answer's ``objective``; None without samples and their costs."""
-    if samples is None or costs is None or not math.isfinite(objective):
+    cost's margin over the answer's ``objective``; None without samples and their costs, or without a
+    guide to judge them (then nothing is evaluated)."""
+    if samples is None or costs is None or not math.isfinite(objective) or not guides(problem.cost):
         return None
     x = problem.full(samples)
     with torch.no_grad():
