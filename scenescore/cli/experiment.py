@@ -26,6 +26,7 @@ OWN_OPTIONS: dict[str, tuple[str, ...]] = {
     "--problems": ("relations",),
     "--sizes": ("relations",),
     "--tries": ("relations",),
+    "--examples": ("relations",),
     "--alm": ("compose",),
     "--from-images": ("missing", "novel"),
     "--encoders": ("novel",),
@@ -205,8 +206,14 @@ def _add_relations(p: argparse.ArgumentParser) -> None:
         "--tries",
         type=number(1, 10_000, integer=True),
         default=None,
-        help="relations: tries (samples) per problem and method; rejection sampling draws tries x 100 "
-        "(default 10)",
+        help="relations: tries (samples) per problem and method, the best of 8 particles each; rejection "
+        "sampling draws tries x 800 (default 10)",
+    )
+    p.add_argument(
+        "--examples",
+        type=SCENES,
+        default=None,
+        help="relations: example scenes each relation model learns from (default 2048; 256 with --quick)",
     )
 
 

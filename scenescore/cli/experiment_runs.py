@@ -356,6 +356,7 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         problems=problems,
         tries=args.tries or 10,
         methods=_methods(args),
+        examples=args.examples or (256 if args.quick else relations.EXAMPLES),
         config=relations.train_config(args.iterations, args.quick),
         progress=not args.quiet,
         device=args.device,
@@ -367,10 +368,12 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     relations.plot_relations(res, out / "solved.png")
     md = "## Composing learned relations: random consistent problems (Diffusion-CCSP's protocol)\n\n"
     md += (
-        f"One relation model per relation ({', '.join(res.relations)}), trained on examples of 2 or 3 objects "
-        f"({relations.train_config(args.iterations, args.quick).iterations} iterations each); problems of N "
-        "objects with about 1.5 N relations, non-overlap and bounds, drawn backwards from a random arrangement; "
-        f"rejection sampling draws up to {res.tries * relations.STEPS} uniform arrangements per problem.\n\n"
+        f"One relation model per relation ({', '.join(res.relations)}), trained on {res.examples} example "
+        f"scenes of 2 or 3 objects ({relations.train_config(args.iterations, args.quick).iterations} iterations "
+        "each); problems of N objects with about 1.5 N relations, non-overlap and bounds, drawn backwards from "
+        f"a random arrangement; each try is the best of {relations.POOL} particles by the method's own cost; "
+        f"rejection sampling draws up to {res.tries * relations.POOL * relations.STEPS} uniform arrangements "
+        "per problem.\n\n"
     )
     md += relations.format_relations(res) + "\n\nFigure: solved.png (fraction solved against N)."
     return md, res.rows()

@@ -7,21 +7,26 @@ N objects, about 1.5 N relations, non-overlap and bounds, ``problems`` per N, th
 A problem is solved when some of a method's ``tries`` arrangements passes every relation's checker and
 the exact non-overlap and bounds checks (:meth:`~scenescore.scenarios.relation_problems.RelationProblem.solved`).
 
+Each relation model learns from :data:`EXAMPLES` example scenes of its relation (its scenario's
+generator, the seed's stream); a relation that reads the subject's heading (``facing``) is trained with
+round objects' headings visible (``round_invariant=False``), since a disk can face something too.
+
 - Relations (langevin): the relation models bound to the problem's objects (one
   :class:`~scenescore.costs.Relation` term per relation, its instances batched) + 10 * hinge
-  collision + 10 * bounds, sampled by ``langevin`` with ``tries`` particles from uniform starts, each
-  particle a try.
+  collision + 10 * bounds, sampled by ``langevin`` with ``tries * POOL`` particles from uniform
+  starts; the tries are the ``tries`` best particles by the method's own judgement (within the
+  collision and bounds tolerance first, then the lowest cost), never by the checkers.
 - Relations (langevin>alm): the same particles, each refined at once by the batched augmented
-  Lagrangian (``alm``, :data:`REFINE`) under the collision and bounds constraints; its time includes
-  the Langevin stage.
+  Lagrangian (``alm``, :data:`REFINE`) under the collision and bounds constraints, the tries the
+  ``tries`` best refined ones; its time includes the Langevin stage.
 - Whole scenes (langevin>alm): one SceneScore energy trained on whole arrangements of the same process
   (:func:`whole_scene_training`: the generator's arrangements, :data:`WHOLE_SCENES` of each size, drawn
   from another stream than the test problems), + 10 * hinge collision + 10 * bounds, sampled and refined
   as the row above. It sees the objects, never the relations a problem asks for: the baseline that tells
   what knowing the relations buys.
 - Rejection (uniform): arrangements drawn uniformly (positions in the bounds, headings in a full
-  turn) until one solves the problem, at most ``tries * steps`` of them: as many as the Langevin
-  stage evaluates the cost at.
+  turn) until one solves the problem, at most ``tries * POOL * STEPS`` of them: as many as the
+  Langevin stage evaluates the cost at.
 
 Time per problem is the wall time of solving (and checking) one problem, training not included.
 """
@@ -30,7 +35,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,12 +45,14 @@ import torch
 
 from ..costs import Bounds, Cost, HingeCollision, LearnedEnergy, Relation
 from ..learn import TrainConfig, train
-from ..problem import Problem
+from ..problem import FEASIBILITY_TOL, Problem
 from ..scenarios import get
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, RelationProblem, relation_problems
+from ..scenarios.relations import RELATIONS
 from ..scene import Scene, SceneError
 from ..solvers import get as get_solver
 from ..solvers import solve
+from ..solvers.result import best_first
 from ..tasks import Sweep, Task, run_tasks
 from .report import SeedResults, format_table, over_seeds
 
@@ -59,6 +66,8 @@ __all__ = [
     "WHOLE",
     "REJECTION",
     "REFINE",
+    "EXAMPLES",
+    "POOL",
     "SIZES",
     "STEPS",
     "RelationsResult",
@@ -79,7 +88,9 @@ METHODS = [LANGEVIN, REFINED, WHOLE, REJECTION]
 WHOLE_SCENES = 48  # training arrangements of each size for the whole-scene energy
 WHOLE_STREAM = 10_000  # their generator's seed is this plus the seed: never a test problem's
 SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
-STEPS = 100  # Langevin steps per try (the rejection budget is tries * STEPS draws)
+STEPS = 100  # Langevin steps per particle (the rejection budget is tries * POOL * STEPS draws)
+POOL = 8  # Langevin particles per try: the tries are the best tries of tries * POOL particles
+EXAMPLES = 2048  # example scenes each relation model learns from
 COLLISION_WEIGHT = 10.0  # the hinge collision and bounds penalties' weight beside the relation energies
 #: the refinement's ``alm`` options: descend until feasible and the objective nearly flat
 REFINE: dict[str, Any] = {"tol_grad": 1.0}
@@ -94,6 +105,7 @@ class RelationsResult(SeedResults):
     sizes: list[int] = field(default_factory=list)
     problems: int = 0
     tries: int = 0
+    examples: int = 0
     relations: list[str] = field(default_factory=list)
 
 
@@ -110,13 +122,15 @@ def train_relations(
     device: Any = None,
     cache: Any = None,
     progress: bool = False,
+    examples: int = EXAMPLES,
 ) -> dict[str, ScoreModel]:
-    """One model per relation, trained on its scenario's training split for ``seed`` (``relation-<name>``);
-    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
+    """One model per relation, trained on ``examples`` scenes of its scenario's training stream for
+    ``seed`` (``relation-<name>``), with round objects' headings visible where the relation reads the
+    subject's heading; ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
     return {
         r: train(
-            get(f"relation-{r}").split(seed)[0],
-            config,
+            get(f"relation-{r}", n_train=examples).split(seed)[0],
+            replace(config, round_invariant=False) if RELATIONS[r].reads_heading else config,
             seed=seed,
             progress=progress,
             device=device,
@@ -165,6 +179,15 @@ def _any_solved(problem: RelationProblem, samples: np.ndarray) -> bool:
     return any(problem.solved(p) for p in np.asarray(samples, dtype=float))
 
 
+def _best(prob: Problem, samples: np.ndarray | torch.Tensor, tries: int) -> np.ndarray:
+    """The ``tries`` best of ``samples``: those within the collision and bounds tolerance first, then
+    by cost (the relation energies' judgement; the checkers are never asked)."""
+    x = torch.as_tensor(np.asarray(samples, dtype=float))
+    with torch.no_grad():
+        order = best_first(prob.violation(x) <= FEASIBILITY_TOL, prob.evaluate(x))
+    return x[order[:tries]].numpy()
+
+
 def rejection(problem: RelationProblem, budget: int, seed: int) -> bool:
     """Whether one of ``budget`` uniform arrangements (positions in the bounds, headings in a full turn)
     solves ``problem``; draws stop at the first that does."""
@@ -183,19 +206,22 @@ def rejection(problem: RelationProblem, budget: int, seed: int) -> bool:
 def _sample_refine(
     problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool
 ) -> tuple[tuple[bool, float], tuple[bool, float] | None]:
-    """``langevin`` with ``tries`` particles, then (``refine``) ``alm`` from them: whether each solves
-    ``problem``, and its seconds (the refinement's include the sampling's)."""
+    """``langevin`` with ``tries * POOL`` particles, then (``refine``) ``alm`` from them: whether one of
+    the ``tries`` best (:func:`_best`) solves ``problem``, and the seconds (the refinement's include
+    the sampling's)."""
     t0 = time.perf_counter()
-    r = solve(prob, "langevin", seed=seed, options={"langevin": {"particles": tries, "steps": STEPS}})
-    t_lan = time.perf_counter() - t0
+    r = solve(prob, "langevin", seed=seed, options={"langevin": {"particles": tries * POOL, "steps": STEPS}})
     assert r.samples is not None
-    sampled = (_any_solved(problem, r.samples), t_lan)
+    chosen = _best(prob, r.samples, tries)
+    t_lan = time.perf_counter() - t0
+    sampled = (_any_solved(problem, chosen), t_lan)
     if not refine:
         return sampled, None
     t0 = time.perf_counter()
     rr = get_solver("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
     assert rr.samples is not None
-    return sampled, (_any_solved(problem, rr.samples), t_lan + time.perf_counter() - t0)
+    chosen = _best(prob, rr.samples, tries)
+    return sampled, (_any_solved(problem, chosen), t_lan + time.perf_counter() - t0)
 
 
 def _solve_one(
@@ -223,7 +249,7 @@ def _solve_one(
         out[WHOLE] = refined
     if REJECTION in chosen:
         t0 = time.perf_counter()
-        out[REJECTION] = (rejection(problem, tries * STEPS, seed), time.perf_counter() - t0)
+        out[REJECTION] = (rejection(problem, tries * POOL * STEPS, seed), time.perf_counter() - t0)
     return out
 
 
@@ -235,6 +261,7 @@ def _seed(
     problems: int,
     tries: int,
     relations: list[str],
+    examples: int,
     config: TrainConfig,
     progress: bool,
     device: Any,
@@ -247,7 +274,7 @@ def _seed(
     models: dict[str, ScoreModel] = {}
     if LANGEVIN in chosen or REFINED in chosen:
         t0 = time.perf_counter()
-        models = train_relations(relations, seed, config, device, cache)
+        models = train_relations(relations, seed, config, device, cache, examples=examples)
         for m in (LANGEVIN, REFINED):
             if m in chosen:
                 seconds[m] += time.perf_counter() - t0
@@ -282,6 +309,7 @@ def run(
     tries: int = 10,
     methods: list[str] | None = None,
     relations: Sequence[str] = PROBLEM_RELATIONS,
+    examples: int = EXAMPLES,
     config: TrainConfig | None = None,
     progress: bool = True,
     log: Callable[[str], None] = print,
@@ -292,18 +320,22 @@ def run(
 ) -> RelationsResult:
     """The experiment over seeds ``0 .. seeds-1``, each its own relation models and problems: the fraction
     of ``problems`` problems of each size in ``sizes`` that each method solves within ``tries``.
-    ``relations``: those the problems draw from (each one model); ``config``: their training (default
+    ``relations``: those the problems draw from (each one model, trained on ``examples`` example
+    scenes); ``config``: their training (default
     :func:`train_config`); ``jobs > 1``: the seeds in that many worker processes (the figures do not
     depend on it); ``sweep``: where each seed's record is kept, to resume from (:mod:`scenescore.tasks`)."""
     chosen = methods or list(METHODS)
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
         raise SceneError(f"unknown method(s) {unknown}; choose from {METHODS}")
-    if tries < 1 or problems < 1 or seeds < 1:
+    if tries < 1 or problems < 1 or seeds < 1 or examples < 1:
         raise SceneError(
-            f"relations: seeds, problems and tries must be at least 1, got {seeds}, {problems}, {tries}"
+            "relations: seeds, problems, tries and examples must be at least 1, got "
+            f"{seeds}, {problems}, {tries}, {examples}"
         )
-    res = RelationsResult(sizes=list(sizes), problems=problems, tries=tries, relations=list(relations))
+    res = RelationsResult(
+        sizes=list(sizes), problems=problems, tries=tries, relations=list(relations), examples=examples
+    )
     one = partial(
         _seed,
         chosen=chosen,
@@ -311,6 +343,7 @@ def run(
         problems=problems,
         tries=tries,
         relations=list(relations),
+        examples=examples,
         config=config or train_config(),
         progress=progress,
         device=device,
@@ -322,6 +355,7 @@ def run(
         "problems": problems,
         "tries": tries,
         "relations": list(relations),
+        "examples": examples,
         "training": config or train_config(),
         "device": str(device),
     }  # every setting a seed's record depends on

@@ -242,6 +242,7 @@ class RelationKind:
     overlaps: bool = False
     small_on_large: bool = False  # a drawn smaller than b (an object centred on another)
     frame: bool = False  # it depends on the world's axes: the examples hold the axes marker (a compass)
+    reads_heading: bool = False  # it depends on the subject's heading, a round subject's too (facing)
 
 
 RELATIONS: dict[str, RelationKind] = {
@@ -256,7 +257,7 @@ RELATIONS: dict[str, RelationKind] = {
         RelationKind("centred_on", 2, centred_on, _draw_centred, overlaps=True, small_on_large=True),
         RelationKind("near", 2, near, lambda rng, s: _beside(rng, s, (0.0, NEAR))),
         RelationKind("far_from", 2, far_from, _draw_uniform),
-        RelationKind("facing", 2, facing, _draw_facing),
+        RelationKind("facing", 2, facing, _draw_facing, reads_heading=True),
         RelationKind("between", 3, between, _draw_between),
     )
 }

@@ -8,9 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
 from scenescore.cli import main
-from scenescore.experiments.relations import METHODS, relation_cost_problem
+from scenescore.experiments.relations import METHODS, _best, relation_cost_problem, train_relations
+from scenescore.learn import TrainConfig
 from scenescore.scenarios.relation_problems import (
     PROBLEM_RELATIONS,
     RelationProblem,
@@ -84,7 +86,7 @@ def test_bad_problem_requests_are_clear_errors():
 def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
     out = tmp_path / "rel"
     argv = ["experiment", "relations", "--seeds", "1", "--problems", "2", "--sizes", "2,3", "--tries", "2"]
-    argv += ["--iterations", "5", "--jobs", "1", "--quiet", "--out", str(out)]
+    argv += ["--iterations", "5", "--examples", "8", "--jobs", "1", "--quiet", "--out", str(out)]
     assert main(argv) == 0
     doc = json.loads((out / "results.json").read_text())
     rows = doc["experiments"][0]["rows"]
@@ -98,3 +100,31 @@ def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
     assert "| Rejection (uniform) |" in printed and "N=3" in printed
     assert main(["experiment", "relations", "--sizes", "1,2", "--out", str(out)]) == 2
     assert "--sizes" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def tiny_models():
+    return train_relations(["facing", "left_of"], 0, TrainConfig(iterations=2), examples=8)
+
+
+def test_relation_models_see_a_round_subjects_heading_only_where_the_relation_reads_it(tiny_models):
+    assert tiny_models["facing"].config.round_invariant is False  # a disk can face a plate
+    assert tiny_models["left_of"].config.round_invariant is True
+
+
+def test_the_tries_are_the_best_particles_by_the_methods_own_cost(tiny_models):
+    problem = relation_problem(2, 0, relations=("left_of",))
+    prob = relation_cost_problem(problem, tiny_models)
+    good = problem.scene.poses()
+    outside = good.copy()
+    outside[0, :2] = (0.9, 0.9)  # off the table: violates the bounds constraint
+    others = good[None] + np.random.default_rng(0).normal(0, 0.05, (6, 2, 3)) * [1, 1, 0]
+    samples = np.concatenate([outside[None], others, good[None]])
+    chosen = _best(prob, samples, 3)
+    assert chosen.shape == (3, 2, 3)
+    x = torch.as_tensor(samples)
+    feasible = (prob.violation(x) <= 1e-4).numpy()
+    costs = prob.evaluate(x).detach().numpy()
+    expected = sorted(np.flatnonzero(feasible), key=lambda k: costs[k])[:3]
+    np.testing.assert_allclose(chosen, samples[expected])
+    assert not any(np.allclose(c, outside) for c in chosen)
