@@ -34,10 +34,12 @@ __all__ = [
     "screen",
     "resample",
     "finite_or_inf",
+    "sweep_headings",
 ]
 
 
 MAX_STEPS = 1_000_000  # a chain longer than this is a typo, not a plan
+MAX_HEADINGS = 3600  # a heading sweep finer than a tenth of a degree is a typo, not a plan
 
 
 @dataclass(frozen=True)
@@ -56,10 +58,15 @@ class LangevinConfig:
     final_descent: int = 0  # noise-free gradient steps at lambda_T after the chain
     resample: int = 0  # population resampling points, evenly spaced in the chain (0: independent chains)
     temperature: float = 1.0  # of the resampling weights softmax(-E / temperature)
+    # before the final descent, each moving object's heading in turn becomes the lowest-energy of its
+    # own and this many evenly spaced ones (0: none): a narrow basin in the heading (an object turned to
+    # face another) is found wherever the chain left the heading, not only from nearby
+    heading_sweep: int = 0
 
     def __post_init__(self) -> None:
         for name in ("steps", "final_descent", "resample"):
             check_number("langevin", name, getattr(self, name), 0, MAX_STEPS, integer=True)
+        check_number("langevin", "heading_sweep", self.heading_sweep, 0, MAX_HEADINGS, integer=True)
         for name, zero_ok in (
             ("temperature", False),
             ("step_init", False),
@@ -218,11 +225,34 @@ def langevin(
         else:
             lam = torch.as_tensor(cfg.step_size((age + t).to(dtype))).reshape(b, 1, 1)  # per-chain schedule
         x = step(x, lam, cfg.noise)
+    if cfg.heading_sweep:
+        x = sweep_headings(energy_fn, x, move_b[..., 0], cfg.heading_sweep)
+        if project is not None:
+            x = project(x)
     for _ in range(cfg.final_descent):
         x = step(x, cfg.step_final, 0.0)
     with torch.no_grad():
         e = energy_fn(x)
     return x.detach(), e.detach()
+
+
+def sweep_headings(energy_fn: Callable[[Tensor], Tensor], x: Tensor, movable: Tensor, k: int) -> Tensor:
+    """``x (B, N, 3)`` with each object that ``movable (B, N)`` moves, in turn, turned to the
+    lowest-energy of its current heading and ``k`` evenly spaced ones from -pi (ties keep the current
+    one): one energy call of ``B * (k + 1)`` rows per object."""
+    b, n, _ = x.shape
+    angles = torch.linspace(-math.pi, math.pi, k + 1, dtype=x.dtype, device=x.device)[:-1]
+    rows = torch.arange(b, device=x.device)
+    with torch.no_grad():
+        for i in range(n):
+            if not bool(movable[:, i].any()):
+                continue
+            cand = x[:, None].repeat(1, k + 1, 1, 1)  # (B, k + 1, N, 3); candidate 0 keeps the heading
+            cand[:, 1:, i, 2] = angles
+            e = finite_or_inf(energy_fn(cand.reshape(b * (k + 1), n, 3)).reshape(b, k + 1))
+            turned = cand[rows, e.argmin(dim=1)]
+            x = torch.where(movable[:, i, None, None], turned, x)
+    return x
 
 
 def best_of(poses: Tensor, energies: Tensor, groups: int) -> tuple[Tensor, Tensor]:

@@ -1,4 +1,5 @@
-"""Screened starts, population resampling, an energy that sees some objects, feature noise in training."""
+"""Screened starts, population resampling, heading sweeps, an energy that sees some objects, feature noise
+in training."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import scenescore as ss
 from scenescore.costs import CostError, CostFn, LearnedEnergy
 from scenescore.problem import Problem, ProblemError
 from scenescore.problem_file import load_problem
-from scenescore.sampling import PLACEMENT, LangevinConfig, langevin, resample, screen
+from scenescore.sampling import PLACEMENT, LangevinConfig, langevin, resample, screen, sweep_headings
 from scenescore.scene import Scene, SceneObject
 from scenescore.solvers import solve
 
@@ -68,6 +69,35 @@ def test_resampled_population_ends_in_the_deep_basin():
         x = torch.zeros(2, 1, 3)
         langevin(lambda x: x.sum((1, 2)), x, torch.ones(1, dtype=torch.bool), -torch.ones(2), torch.ones(2),
                  cfg, age=torch.zeros(2))  # fmt: skip
+
+
+def _face(poses: torch.Tensor) -> torch.Tensor:
+    """A narrow well (about 6 degrees wide) for the mug's heading at 1 rad, a slope away from it elsewhere:
+    a chain that starts far from the well never finds it by the gradient alone."""
+    off = torch.remainder(poses[:, 1, 2] - 1.0 + np.pi, 2 * np.pi) - np.pi
+    return -5 * torch.exp(-(off**2) / (2 * 0.05**2)) - 0.1 * off.abs()
+
+
+def test_heading_sweep_finds_a_narrow_well_wherever_the_chain_left_the_heading():
+    p = Problem(_scene(), CostFn(_face, name="face") + ss.costs.Bounds())
+    base = {"particles": 32, "steps": 20, "step_init": 0.01, "noise": 0.2}
+    plain = solve(p, "langevin", seed=0, options={"langevin": base})
+    swept = solve(p, "langevin", seed=0, options={"langevin": {**base, "heading_sweep": 36}})
+    near = lambda r: float(np.mean(np.abs(r.samples[:, 1, 2] - 1.0) < 0.05))  # noqa: E731
+    assert near(swept) == 1.0 and near(plain) < 0.5, (near(plain), near(swept))
+    assert np.allclose(swept.samples[:, 0], plain.samples[:, 0])  # the fixed box never turns
+
+
+def test_heading_sweep_keeps_the_heading_on_a_tie_and_moves_only_movable_objects():
+    x = torch.tensor([[[0.0, 0.0, 0.3], [0.1, 0.0, -2.0]]], dtype=torch.float64).repeat(2, 1, 1)
+    flat = sweep_headings(lambda y: y.new_zeros(y.shape[0]), x, torch.ones(2, 2, dtype=torch.bool), 8)
+    assert torch.equal(flat, x)
+    to_zero = lambda y: (y[..., 2] ** 2).sum(-1)  # noqa: E731 - every heading wants 0
+    movable = torch.tensor([[True, False], [False, True]])
+    out = sweep_headings(to_zero, x, movable, 8)
+    assert out[0, 0, 2] == 0.0 and out[0, 1, 2] == -2.0  # row 0 turns only its first object
+    assert out[1, 0, 2] == 0.3 and out[1, 1, 2] == 0.0
+    assert torch.equal(out[..., :2], x[..., :2])
 
 
 def test_candidates_screen_the_start_by_cost():
@@ -150,6 +180,8 @@ def test_yaml_energy_objects_key(tmp_path, model):
         ("max_delta", float("inf")),
         ("noise", -1.0),
         ("power", float("nan")),
+        ("heading_sweep", -1),
+        ("heading_sweep", 2.5),
     ],
 )
 def test_langevin_config_refuses_nonsense(field, value):

@@ -8,13 +8,15 @@ A problem is solved when some of a method's ``tries`` arrangements passes every 
 the exact non-overlap and bounds checks (:meth:`~scenescore.scenarios.relation_problems.RelationProblem.solved`).
 
 Each relation model learns from :data:`EXAMPLES` example scenes of its relation (its scenario's
-generator, the seed's stream); a relation that reads the subject's heading (``facing``) is trained with
+generator, the seed's stream), with :data:`PERTURBED` counter-examples per example that move one of
+its objects a little besides the Langevin ones; a relation that reads the subject's heading (``facing``) is trained with
 round objects' headings visible (``round_invariant=False``), since a disk can face something too.
 
 - Relations (langevin): the relation models bound to the problem's objects (one
   :class:`~scenescore.costs.Relation` term per relation, its instances batched) + 10 * hinge
   collision + 10 * bounds, sampled by ``langevin`` with ``tries * POOL`` particles from uniform
-  starts; the tries are the ``tries`` best particles by the method's own judgement (within the
+  starts, each object's heading swept (:data:`HEADINGS`) before the chain's final descent, since a
+  relation such as ``facing`` has a narrow basin in the heading; the tries are the ``tries`` best particles by the method's own judgement (within the
   collision and bounds tolerance first, then the lowest cost), never by the checkers.
 - Relations (langevin>alm): the same particles, each refined at once by the batched augmented
   Lagrangian (``alm``, :data:`REFINE`) under the collision and bounds constraints, the tries the
@@ -68,6 +70,8 @@ __all__ = [
     "REFINE",
     "EXAMPLES",
     "POOL",
+    "HEADINGS",
+    "PERTURBED",
     "SIZES",
     "STEPS",
     "RelationsResult",
@@ -90,6 +94,8 @@ WHOLE_STREAM = 10_000  # their generator's seed is this plus the seed: never a t
 SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
 STEPS = 100  # Langevin steps per particle (the rejection budget is tries * POOL * STEPS draws)
 POOL = 8  # Langevin particles per try: the tries are the best tries of tries * POOL particles
+HEADINGS = 24  # the chain's heading sweep: each object turned to the best of 24 headings (15 degrees apart)
+PERTURBED = 8  # counter-examples per example that move one object of it a little (sharper edges)
 EXAMPLES = 2048  # example scenes each relation model learns from
 COLLISION_WEIGHT = 10.0  # the hinge collision and bounds penalties' weight beside the relation energies
 #: the refinement's ``alm`` options: descend until feasible and the objective nearly flat
@@ -110,9 +116,10 @@ class RelationsResult(SeedResults):
 
 
 def train_config(iterations: int | None = None, quick: bool = False) -> TrainConfig:
-    """The relation models' training settings: the trainer's defaults, ``iterations`` (default 600;
-    100 with ``quick``)."""
-    return TrainConfig(iterations=iterations or (100 if quick else 600))
+    """The relation models' (and the whole-scene energy's) training settings: the trainer's defaults,
+    ``iterations`` (default 600; 100 with ``quick``) and :data:`PERTURBED` counter-examples per example
+    that move one of its objects a little, which sharpen the energy at the edge of a relation's region."""
+    return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED)
 
 
 def train_relations(
@@ -210,7 +217,8 @@ def _sample_refine(
     the ``tries`` best (:func:`_best`) solves ``problem``, and the seconds (the refinement's include
     the sampling's)."""
     t0 = time.perf_counter()
-    r = solve(prob, "langevin", seed=seed, options={"langevin": {"particles": tries * POOL, "steps": STEPS}})
+    options = {"particles": tries * POOL, "steps": STEPS, "heading_sweep": HEADINGS}
+    r = solve(prob, "langevin", seed=seed, options={"langevin": options})
     assert r.samples is not None
     chosen = _best(prob, r.samples, tries)
     t_lan = time.perf_counter() - t0
