@@ -70,6 +70,7 @@ __all__ = [
     "REFINE",
     "EXAMPLES",
     "POOL",
+    "best_tries",
     "HEADINGS",
     "PERTURBED",
     "SIZES",
@@ -186,7 +187,7 @@ def _any_solved(problem: RelationProblem, samples: np.ndarray) -> bool:
     return any(problem.solved(p) for p in np.asarray(samples, dtype=float))
 
 
-def _best(prob: Problem, samples: np.ndarray | torch.Tensor, tries: int) -> np.ndarray:
+def best_tries(prob: Problem, samples: np.ndarray | torch.Tensor, tries: int) -> np.ndarray:
     """The ``tries`` best of ``samples``: those within the collision and bounds tolerance first, then
     by cost (the relation energies' judgement; the checkers are never asked)."""
     x = torch.as_tensor(np.asarray(samples, dtype=float))
@@ -214,13 +215,13 @@ def _sample_refine(
     problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool
 ) -> tuple[tuple[bool, float], tuple[bool, float] | None]:
     """``langevin`` with ``tries * POOL`` particles, then (``refine``) ``alm`` from them: whether one of
-    the ``tries`` best (:func:`_best`) solves ``problem``, and the seconds (the refinement's include
+    the ``tries`` best (:func:`best_tries`) solves ``problem``, and the seconds (the refinement's include
     the sampling's)."""
     t0 = time.perf_counter()
     options = {"particles": tries * POOL, "steps": STEPS, "heading_sweep": HEADINGS}
     r = solve(prob, "langevin", seed=seed, options={"langevin": options})
     assert r.samples is not None
-    chosen = _best(prob, r.samples, tries)
+    chosen = best_tries(prob, r.samples, tries)
     t_lan = time.perf_counter() - t0
     sampled = (_any_solved(problem, chosen), t_lan)
     if not refine:
@@ -228,7 +229,7 @@ def _sample_refine(
     t0 = time.perf_counter()
     rr = get_solver("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
     assert rr.samples is not None
-    chosen = _best(prob, rr.samples, tries)
+    chosen = best_tries(prob, rr.samples, tries)
     return sampled, (_any_solved(problem, chosen), t_lan + time.perf_counter() - t0)
 
 

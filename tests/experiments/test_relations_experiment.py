@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from scenescore.cli import main
-from scenescore.experiments.relations import METHODS, _best, relation_cost_problem, train_relations
+from scenescore.experiments.relations import METHODS, best_tries, relation_cost_problem, train_relations
 from scenescore.learn import TrainConfig
 from scenescore.scenarios.relation_problems import (
     PROBLEM_RELATIONS,
@@ -120,7 +120,7 @@ def test_the_tries_are_the_best_particles_by_the_methods_own_cost(tiny_models):
     outside[0, :2] = (0.9, 0.9)  # off the table: violates the bounds constraint
     others = good[None] + np.random.default_rng(0).normal(0, 0.05, (6, 2, 3)) * [1, 1, 0]
     samples = np.concatenate([outside[None], others, good[None]])
-    chosen = _best(prob, samples, 3)
+    chosen = best_tries(prob, samples, 3)
     assert chosen.shape == (3, 2, 3)
     x = torch.as_tensor(samples)
     feasible = (prob.violation(x) <= 1e-4).numpy()
