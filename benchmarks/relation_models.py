@@ -10,9 +10,10 @@ bound to problems that ask for that relation only (2 objects, 3 for ``between``:
 generator's own, restricted to the relation), with non-overlap and bounds, and sampled as the
 experiment's ``Relations (langevin>alm)`` row samples (80 particles with the heading sweep, each refined,
 the 10 best by the cost kept). The table gives, per relation, the fraction of the kept samples that
-solve their problem (every checker, non-overlap, bounds) and the fraction of problems with at least one; a relation with few samples accepted limits every problem
-that names it. ``--set`` changes the models' training settings (``TrainConfig`` fields, as for
-``scenescore train --set``), to compare them on this table.
+solve their problem (every checker, non-overlap, bounds) and the fraction of problems with at least
+one; a relation with few samples accepted limits every problem that names it. ``--set`` changes the
+models' training settings (``TrainConfig`` fields, as for ``scenescore train --set``), to compare them
+on this table.
 """
 
 from __future__ import annotations

@@ -366,11 +366,13 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     )
     out.mkdir(parents=True, exist_ok=True)
     relations.plot_relations(res, out / "solved.png")
+    iterations = relations.train_config(args.iterations, args.quick).iterations
     md = "## Composing learned relations: random consistent problems (Diffusion-CCSP's protocol)\n\n"
     md += (
         f"One relation model per relation ({', '.join(res.relations)}), trained on {res.examples} example "
-        f"scenes of 2 or 3 objects ({relations.train_config(args.iterations, args.quick).iterations} iterations "
-        f"each, {relations.PERTURBED} perturbed counter-examples per example); problems of N objects with about 1.5 N relations, non-overlap and bounds, drawn backwards from "
+        f"scenes of 2 or 3 objects ({iterations} iterations each, {relations.PERTURBED} perturbed "
+        "counter-examples per example); problems of N objects with about 1.5 N relations, non-overlap and "
+        "bounds, drawn backwards from "
         f"a random arrangement; each try is the best of {relations.POOL} particles by the method's own cost, "
         f"every heading swept over {relations.HEADINGS} before the final descent; "
         f"rejection sampling draws up to {res.tries * relations.POOL * relations.STEPS} uniform arrangements "

@@ -9,15 +9,17 @@ the exact non-overlap and bounds checks (:meth:`~scenescore.scenarios.relation_p
 
 Each relation model learns from :data:`EXAMPLES` example scenes of its relation (its scenario's
 generator, the seed's stream), with :data:`PERTURBED` counter-examples per example that move one of
-its objects a little besides the Langevin ones; a relation that reads the subject's heading (``facing``) is trained with
-round objects' headings visible (``round_invariant=False``), since a disk can face something too.
+its objects a little besides the Langevin ones; a relation that reads the subject's heading
+(``facing``) is trained with round objects' headings visible (``round_invariant=False``), since a disk
+can face something too.
 
 - Relations (langevin): the relation models bound to the problem's objects (one
   :class:`~scenescore.costs.Relation` term per relation, its instances batched) + 10 * hinge
   collision + 10 * bounds, sampled by ``langevin`` with ``tries * POOL`` particles from uniform
   starts, each object's heading swept (:data:`HEADINGS`) before the chain's final descent, since a
-  relation such as ``facing`` has a narrow basin in the heading; the tries are the ``tries`` best particles by the method's own judgement (within the
-  collision and bounds tolerance first, then the lowest cost), never by the checkers.
+  relation such as ``facing`` has a narrow basin in the heading; the tries are the ``tries`` best
+  particles by the method's own judgement (within the collision and bounds tolerance first, then the
+  lowest cost), never by the checkers.
 - Relations (langevin>alm): the same particles, each refined at once by the batched augmented
   Lagrangian (``alm``, :data:`REFINE`) under the collision and bounds constraints, the tries the
   ``tries`` best refined ones; its time includes the Langevin stage.
