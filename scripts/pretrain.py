@@ -3,7 +3,8 @@
 (three relations: left of, in front of, near).
 
 Each scenario's model is trained on its training split (``get(name).split(seed)[0]``, all of it, as
-``scenescore experiment zoo`` trains) with the default ``TrainConfig`` and the seed recorded, written to
+``scenescore experiment zoo`` trains) with the default ``TrainConfig`` and the seed recorded (a relation
+model: as ``scenescore experiment relations`` trains its models, on 2048 example scenes), written to
 ``scenescore/models/pretrained/<name>.ckpt`` (atomically), then loaded back from that file and measured
 on its documented figure (:mod:`scenescore.experiments.bundled`; a relation model's is the fraction of
 its held-out examples placed back where the checker accepts them). ``index.json`` beside the checkpoints
@@ -34,6 +35,8 @@ from scenescore.experiments.bundled import (
     relation_figure,
     tolerance,
 )
+from scenescore.experiments.relations import relation_training
+from scenescore.experiments.relations import train_config as relations_train_config
 from scenescore.learn import TrainConfig, train
 from scenescore.models import load
 from scenescore.provenance import git_commit
@@ -55,8 +58,15 @@ def read_index(path: Path) -> dict[str, Any]:
 
 
 def pretrain_one(name: str, seed: int, folder: Path, config: TrainConfig) -> dict[str, Any]:
-    """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`)."""
-    train_s, _ = get(name).split(seed)
+    """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`). A relation
+    model learns as the relations experiment's do (:func:`relation_training`: 2048 examples, with
+    counter-examples that move one object a little)."""
+    if name in RELATION_MODELS:
+        train_s, config = relation_training(
+            name.removeprefix("relation-"), seed, relations_train_config(config.iterations)
+        )
+    else:
+        train_s, _ = get(name).split(seed)
     t0 = time.perf_counter()
     model = train(train_s, config, seed=seed, progress=True)
     seconds = time.perf_counter() - t0

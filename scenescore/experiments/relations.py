@@ -79,6 +79,7 @@ __all__ = [
     "STEPS",
     "RelationsResult",
     "train_config",
+    "relation_training",
     "train_relations",
     "whole_scene_training",
     "relation_cost_problem",
@@ -125,6 +126,19 @@ def train_config(iterations: int | None = None, quick: bool = False) -> TrainCon
     return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED)
 
 
+def relation_training(
+    relation: str, seed: int, config: TrainConfig, examples: int = EXAMPLES
+) -> tuple[list[Scene], TrainConfig]:
+    """What the model of ``relation`` (``left_of``, ...) learns from: ``examples`` scenes of its scenario's
+    training stream for ``seed`` (``relation-<name>``), and ``config`` with round objects' headings
+    visible where the relation reads the subject's heading. The experiment's models and the shipped
+    ones (``scripts/pretrain.py``) train on these."""
+    if relation not in RELATIONS:
+        raise SceneError(f"no relation {relation!r}; relations: {', '.join(RELATIONS)}")
+    scenes = get(f"relation-{relation}", n_train=examples).split(seed)[0]
+    return scenes, replace(config, round_invariant=False) if RELATIONS[relation].reads_heading else config
+
+
 def train_relations(
     relations: Sequence[str],
     seed: int,
@@ -134,20 +148,13 @@ def train_relations(
     progress: bool = False,
     examples: int = EXAMPLES,
 ) -> dict[str, ScoreModel]:
-    """One model per relation, trained on ``examples`` scenes of its scenario's training stream for
-    ``seed`` (``relation-<name>``), with round objects' headings visible where the relation reads the
-    subject's heading; ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
-    return {
-        r: train(
-            get(f"relation-{r}", n_train=examples).split(seed)[0],
-            replace(config, round_invariant=False) if RELATIONS[r].reads_heading else config,
-            seed=seed,
-            progress=progress,
-            device=device,
-            cache=cache,
-        )
-        for r in relations
-    }
+    """One model per relation, trained on :func:`relation_training`'s scenes and settings; ``cache``: a
+    model cache folder (:mod:`scenescore.learn.cache`)."""
+    models = {}
+    for r in relations:
+        scenes, cfg = relation_training(r, seed, config, examples)
+        models[r] = train(scenes, cfg, seed=seed, progress=progress, device=device, cache=cache)
+    return models
 
 
 def whole_scene_training(sizes: Sequence[int], seed: int, relations: Sequence[str]) -> list[Scene]:
