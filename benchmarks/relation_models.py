@@ -5,7 +5,7 @@
 
 The relations experiment sums one energy per relation; a problem of N objects asks for about 1.5 N of
 them, so its solved fraction is bounded by how often each energy alone is satisfied. Here each relation
-model (trained as `scenescore experiment relations` trains it, on its scenario's split for the seed) is
+model (trained as `scenescore experiment relations` trains it, on 2048 example scenes for the seed) is
 bound to problems that ask for that relation only (2 objects, 3 for ``between``: the problem
 generator's own, restricted to the relation), with non-overlap and bounds, and sampled as the
 experiment's ``Relations (langevin>alm)`` row samples (80 particles with the heading sweep, each refined,
