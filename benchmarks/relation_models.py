@@ -21,14 +21,10 @@ from __future__ import annotations
 import argparse
 import time
 
-import torch
-
 from scenescore.cli.train_settings import overridden, parse_overrides
 from scenescore.errors import ConfigError
 from scenescore.experiments import relations as R
 from scenescore.scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
-from scenescore.solvers import get as get_solver
-from scenescore.solvers import solve
 
 TRIES = 10
 
@@ -63,11 +59,8 @@ def main(argv: list[str] | None = None) -> None:
         probs = [p for p in relation_problems(n, args.problems, args.seed, [rel]) if p.relations]
         accepted = solved = 0
         for k, prob in enumerate(probs):
-            cost = R.relation_cost_problem(prob, models)
-            options = {"particles": TRIES * R.POOL, "steps": R.STEPS, "heading_sweep": R.HEADINGS}
-            r = solve(cost, "langevin", seed=k, options={"langevin": options})
-            rr = get_solver("alm", **R.REFINE).solve(cost, init=torch.as_tensor(r.samples))
-            ok = [prob.solved(p) for p in R.best_tries(cost, rr.samples, TRIES)]
+            chosen, _ = R.sample_tries(R.relation_cost_problem(prob, models), TRIES, k, refine=True)[-1]
+            ok = [prob.solved(p) for p in chosen]
             accepted += sum(ok)
             solved += any(ok)
         if probs:

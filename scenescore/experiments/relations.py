@@ -73,6 +73,7 @@ __all__ = [
     "EXAMPLES",
     "POOL",
     "best_tries",
+    "sample_tries",
     "HEADINGS",
     "PERTURBED",
     "SIZES",
@@ -220,26 +221,28 @@ def rejection(problem: RelationProblem, budget: int, seed: int) -> bool:
     return False
 
 
-def _sample_refine(
-    problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool
-) -> tuple[tuple[bool, float], tuple[bool, float] | None]:
-    """``langevin`` with ``tries * POOL`` particles, then (``refine``) ``alm`` from them: whether one of
-    the ``tries`` best (:func:`best_tries`) solves ``problem``, and the seconds (the refinement's include
-    the sampling's)."""
+def sample_tries(prob: Problem, tries: int, seed: int, refine: bool) -> list[tuple[np.ndarray, float]]:
+    """How the experiment samples ``prob``: ``langevin`` with ``tries * POOL`` particles (the heading
+    sweep on), then (``refine``) ``alm`` from every particle; for each stage its ``tries`` best
+    (:func:`best_tries`) and the seconds so far (the refinement's include the sampling's)."""
     t0 = time.perf_counter()
     options = {"particles": tries * POOL, "steps": STEPS, "heading_sweep": HEADINGS}
     r = solve(prob, "langevin", seed=seed, options={"langevin": options})
     assert r.samples is not None
-    chosen = best_tries(prob, r.samples, tries)
-    t_lan = time.perf_counter() - t0
-    sampled = (_any_solved(problem, chosen), t_lan)
-    if not refine:
-        return sampled, None
-    t0 = time.perf_counter()
-    rr = get_solver("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
-    assert rr.samples is not None
-    chosen = best_tries(prob, rr.samples, tries)
-    return sampled, (_any_solved(problem, chosen), t_lan + time.perf_counter() - t0)
+    stages = [(best_tries(prob, r.samples, tries), time.perf_counter() - t0)]
+    if refine:
+        rr = get_solver("alm", **REFINE).solve(prob, init=torch.as_tensor(r.samples))
+        assert rr.samples is not None
+        stages.append((best_tries(prob, rr.samples, tries), time.perf_counter() - t0))
+    return stages
+
+
+def _sample_refine(
+    problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool
+) -> tuple[tuple[bool, float], tuple[bool, float] | None]:
+    """:func:`sample_tries`: whether one of each stage's tries solves ``problem``, and its seconds."""
+    stages = [(_any_solved(problem, chosen), t) for chosen, t in sample_tries(prob, tries, seed, refine)]
+    return stages[0], stages[1] if refine else None
 
 
 def _solve_one(
