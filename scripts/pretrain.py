@@ -57,16 +57,18 @@ def read_index(path: Path) -> dict[str, Any]:
     return index
 
 
-def pretrain_one(name: str, seed: int, folder: Path, config: TrainConfig) -> dict[str, Any]:
-    """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`). A relation
-    model learns as the relations experiment's do (:func:`relation_training`: 2048 examples, with
-    counter-examples that move one object a little)."""
+def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> dict[str, Any]:
+    """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`). A scenario's
+    model trains with the trainer's defaults; a relation model as the relations experiment's do
+    (:func:`relation_training`: 2048 examples, with counter-examples that move one
+    object a little). ``iterations``: instead of either default."""
     if name in RELATION_MODELS:
         train_s, config = relation_training(
-            name.removeprefix("relation-"), seed, relations_train_config(config.iterations)
+            name.removeprefix("relation-"), seed, relations_train_config(iterations)
         )
     else:
         train_s, _ = get(name).split(seed)
+        config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
     t0 = time.perf_counter()
     model = train(train_s, config, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
@@ -122,7 +124,6 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [n for n in names if n not in known]
     if unknown:
         ap.error(f"no pretrained model for {', '.join(unknown)}; choose from {', '.join(known)}")
-    config = TrainConfig() if args.iterations is None else TrainConfig(iterations=args.iterations)
     args.out.mkdir(parents=True, exist_ok=True)
     index_path = args.out / "index.json"
     index = read_index(index_path)
@@ -132,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
                 sys.exit(f"{name}: no entry in {index_path} to measure again; train it first")
             entry = index["models"][name]
         else:
-            entry = pretrain_one(name, args.seed, args.out, config)
+            entry = pretrain_one(name, args.seed, args.out, args.iterations)
         entry.update(measure(name, entry, args.out))
         index["models"][name] = entry
         index["models"] = dict(sorted(index["models"].items()))
