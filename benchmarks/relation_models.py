@@ -39,7 +39,6 @@ from scenescore.models import ScoreModel
 from scenescore.problem import Problem
 from scenescore.scenarios import get
 from scenescore.scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
-from scenescore.scenarios.relations import RELATIONS, TOL
 from scenescore.scene import Scene
 
 TRIES = 10
@@ -51,21 +50,20 @@ def edge(model: ScoreModel, rel: str, seed: int, examples: int) -> list[tuple[in
     """Per move of :data:`MOVES`: (moves the checker rejects, the fraction of them the energy ranks above
     the example, their mean energy rise over it)."""
     scenario = get(f"relation-{rel}", n_test=examples)
-    roles = scenario.roles
     angles = np.arange(DIRECTIONS) * (2 * math.pi / DIRECTIONS)
+    dist = np.repeat(MOVES, DIRECTIONS)  # each move's length, the 16 directions of each in turn
+    shift = dist[:, None] * np.column_stack([np.cos(angles), np.sin(angles)])[np.tile(range(DIRECTIONS), 2)]
     rises: dict[float, list[float]] = {d: [] for d in MOVES}
     for ex in scenario.split(seed)[1]:
-        scene = Scene([ex[n] for n in roles], ex.bounds)  # the term adds the axes marker itself
-        prob = Problem(scene, Relation(model, objects=[roles]))
-        true = np.array([o.pose for o in scene.objects], dtype=float)
-        moved = [(d, true.copy()) for d in MOVES for _ in angles]
-        for (d, poses), a in zip(moved, np.tile(angles, len(MOVES))):
-            poses[0, :2] += d * np.array([math.cos(a), math.sin(a)])
+        scene = Scene([ex[n] for n in scenario.roles], ex.bounds)  # the term adds the axes marker itself
+        prob = Problem(scene, Relation(model, objects=[scenario.roles]))
+        poses = np.repeat(np.array([o.pose for o in scene.objects], dtype=float)[None], len(dist) + 1, 0)
+        poses[1:, 0, :2] += shift  # row 0: the example; then the subject moved
         with torch.no_grad():
-            e = prob.evaluate(torch.as_tensor(np.stack([true] + [p for _, p in moved]))).numpy()
-        for (d, poses), ek in zip(moved, e[1:]):
-            if not RELATIONS[rel].check(scene.with_poses(poses), roles, tol=TOL):
-                rises[d].append(float(ek - e[0]))
+            e = prob.evaluate(torch.as_tensor(poses)).numpy()
+        for d, p, ek in zip(dist, poses[1:], e[1:]):
+            if not scenario.check(scene.with_poses(p)):
+                rises[float(d)].append(float(ek - e[0]))
     return [
         (len(r), float(np.mean(np.array(r) > 0)) if r else math.nan, float(np.mean(r)) if r else math.nan)
         for r in rises.values()

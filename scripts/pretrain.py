@@ -60,8 +60,8 @@ def read_index(path: Path) -> dict[str, Any]:
 def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> dict[str, Any]:
     """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`). A scenario's
     model trains with the trainer's defaults; a relation model as the relations experiment's do
-    (:func:`relation_training`: 2048 examples, with counter-examples that move one
-    object a little). ``iterations``: instead of either default."""
+    (:func:`relation_training`: 2048 examples, with counter-examples that move one object a little).
+    ``iterations``: instead of either default."""
     if name in RELATION_MODELS:
         train_s, config = relation_training(
             name.removeprefix("relation-"), seed, relations_train_config(iterations)
