@@ -35,8 +35,8 @@ from scenescore.experiments.bundled import (
     relation_figure,
     tolerance,
 )
-from scenescore.experiments.relations import relation_training
-from scenescore.experiments.relations import train_config as relations_train_config
+from scenescore.experiments.relation_models import relation_training, train_relation
+from scenescore.experiments.relation_models import train_config as relations_train_config
 from scenescore.learn import TrainConfig, train
 from scenescore.models import load
 from scenescore.provenance import git_commit
@@ -60,17 +60,17 @@ def read_index(path: Path) -> dict[str, Any]:
 def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> dict[str, Any]:
     """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`). A scenario's
     model trains with the trainer's defaults; a relation model as the relations experiment's do
-    (:func:`relation_training`: 2048 examples, with counter-examples that move one object a little).
-    ``iterations``: instead of either default."""
+    (:func:`train_relation`: 2048 examples, with counter-examples that move one object a little, trained
+    again with the next member seed while its edge is flat). ``iterations``: instead of either default."""
+    t0 = time.perf_counter()
     if name in RELATION_MODELS:
-        train_s, config = relation_training(
-            name.removeprefix("relation-"), seed, relations_train_config(iterations)
-        )
+        rel = name.removeprefix("relation-")
+        train_s, config = relation_training(rel, seed, relations_train_config(iterations))
+        model = train_relation(rel, seed, relations_train_config(iterations), progress=True)
     else:
         train_s, _ = get(name).split(seed)
         config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
-    t0 = time.perf_counter()
-    model = train(train_s, config, seed=seed, progress=True)
+        model = train(train_s, config, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
     path = folder / f"{name}.ckpt"
     model.save(path)

@@ -27,6 +27,7 @@ OWN_OPTIONS: dict[str, tuple[str, ...]] = {
     "--sizes": ("relations",),
     "--tries": ("relations",),
     "--examples": ("relations",),
+    "--restarts": ("relations",),
     "--alm": ("compose",),
     "--from-images": ("missing", "novel"),
     "--encoders": ("novel",),
@@ -214,6 +215,13 @@ def _add_relations(p: argparse.ArgumentParser) -> None:
         type=SCENES,
         default=None,
         help="relations: example scenes each relation model learns from (default 2048; 256 with --quick)",
+    )
+    p.add_argument(
+        "--restarts",
+        type=number(0, 10, integer=True),
+        default=None,
+        help="relations: how many times at most a relation model whose edge is flat on its held-out examples "
+        "is trained again, with the next member seed (default 3; 0: each trained once)",
     )
 
 

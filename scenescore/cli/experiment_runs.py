@@ -346,7 +346,7 @@ def _sizes(text: str) -> list[int]:
 
 
 def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
-    from ..experiments import relations
+    from ..experiments import relation_models, relations
 
     sizes = _sizes(args.sizes) if args.sizes else ([2, 3] if args.quick else list(relations.SIZES))
     problems = args.problems or (5 if args.quick else 100)
@@ -357,6 +357,7 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         tries=args.tries or 10,
         methods=_methods(args),
         examples=args.examples or (256 if args.quick else relations.EXAMPLES),
+        restarts=relation_models.RESTARTS if args.restarts is None else args.restarts,
         config=relations.train_config(args.iterations, args.quick),
         progress=not args.quiet,
         device=args.device,
@@ -371,7 +372,9 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     md += (
         f"One relation model per relation ({', '.join(res.relations)}), trained on {res.examples} example "
         f"scenes of 2 or 3 objects ({iterations} iterations each, {relations.PERTURBED} perturbed "
-        "counter-examples per example); problems of N objects with about 1.5 N relations, non-overlap and "
+        "counter-examples per example; trained again with the next member seed, at most "
+        f"{res.restarts} times, while its edge on {relation_models.VALIDATION} held-out examples "
+        "is flat); problems of N objects with about 1.5 N relations, non-overlap and "
         "bounds, drawn backwards from "
         f"a random arrangement; each try is the best of {relations.POOL} particles by the method's own cost, "
         f"every heading swept over {relations.HEADINGS} before the final descent; "

@@ -7,11 +7,8 @@ N objects, about 1.5 N relations, non-overlap and bounds, ``problems`` per N, th
 A problem is solved when some of a method's ``tries`` arrangements passes every relation's checker and
 the exact non-overlap and bounds checks (:meth:`~scenescore.scenarios.relation_problems.RelationProblem.solved`).
 
-Each relation model learns from :data:`EXAMPLES` example scenes of its relation (its scenario's
-generator, the seed's stream), with :data:`PERTURBED` counter-examples per example that move one of
-its objects a little besides the Langevin ones; a relation that reads the subject's heading
-(``facing``) is trained with round objects' headings visible (``round_invariant=False``), since a disk
-can face something too.
+Each relation model is trained on its own examples and kept only when its edge is sharp on examples it
+never saw (:mod:`~scenescore.experiments.relation_models`).
 
 - Relations (langevin): the relation models bound to the problem's objects (one
   :class:`~scenescore.costs.Relation` term per relation, its instances batched) + 10 * hinge
@@ -39,7 +36,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -50,14 +47,13 @@ import torch
 from ..costs import Bounds, Cost, HingeCollision, LearnedEnergy, Relation
 from ..learn import TrainConfig, train
 from ..problem import FEASIBILITY_TOL, Problem
-from ..scenarios import get
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, RelationProblem, relation_problems
-from ..scenarios.relations import RELATIONS
 from ..scene import Scene, SceneError
 from ..solvers import get as get_solver
 from ..solvers import solve
 from ..solvers.result import best_first
 from ..tasks import Sweep, Task, run_tasks
+from .relation_models import EXAMPLES, PERTURBED, RESTARTS, relation_training, train_config, train_relations
 from .report import SeedResults, format_table, over_seeds
 
 if TYPE_CHECKING:
@@ -100,8 +96,6 @@ SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
 STEPS = 100  # Langevin steps per particle (the rejection budget is tries * POOL * STEPS draws)
 POOL = 8  # Langevin particles per try: the tries are the best tries of tries * POOL particles
 HEADINGS = 24  # the chain's heading sweep: each object turned to the best of 24 headings (15 degrees apart)
-PERTURBED = 8  # counter-examples per example that move one object of it a little (sharper edges)
-EXAMPLES = 2048  # example scenes each relation model learns from
 COLLISION_WEIGHT = 10.0  # the hinge collision and bounds penalties' weight beside the relation energies
 #: the refinement's ``alm`` options: descend until feasible and the objective nearly flat
 REFINE: dict[str, Any] = {"tol_grad": 1.0}
@@ -117,45 +111,8 @@ class RelationsResult(SeedResults):
     problems: int = 0
     tries: int = 0
     examples: int = 0
+    restarts: int = 0
     relations: list[str] = field(default_factory=list)
-
-
-def train_config(iterations: int | None = None, quick: bool = False) -> TrainConfig:
-    """The relation models' (and the whole-scene energy's) training settings: the trainer's defaults,
-    ``iterations`` (default 600; 100 with ``quick``) and :data:`PERTURBED` counter-examples per example
-    that move one of its objects a little, which sharpen the energy at the edge of a relation's region."""
-    return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED)
-
-
-def relation_training(
-    relation: str, seed: int, config: TrainConfig, examples: int = EXAMPLES
-) -> tuple[list[Scene], TrainConfig]:
-    """What the model of ``relation`` (``left_of``, ...) learns from: ``examples`` scenes of its scenario's
-    training stream for ``seed`` (``relation-<name>``), and ``config`` with round objects' headings
-    visible where the relation reads the subject's heading. The experiment's models and the shipped
-    ones (``scripts/pretrain.py``) train on these."""
-    if relation not in RELATIONS:
-        raise SceneError(f"no relation {relation!r}; relations: {', '.join(RELATIONS)}")
-    scenes = get(f"relation-{relation}", n_train=examples).split(seed)[0]
-    return scenes, replace(config, round_invariant=False) if RELATIONS[relation].reads_heading else config
-
-
-def train_relations(
-    relations: Sequence[str],
-    seed: int,
-    config: TrainConfig,
-    device: Any = None,
-    cache: Any = None,
-    progress: bool = False,
-    examples: int = EXAMPLES,
-) -> dict[str, ScoreModel]:
-    """One model per relation, trained on :func:`relation_training`'s scenes and settings; ``cache``: a
-    model cache folder (:mod:`scenescore.learn.cache`)."""
-    models = {}
-    for r in relations:
-        scenes, cfg = relation_training(r, seed, config, examples)
-        models[r] = train(scenes, cfg, seed=seed, progress=progress, device=device, cache=cache)
-    return models
 
 
 def whole_scene_training(sizes: Sequence[int], seed: int, relations: Sequence[str]) -> list[Scene]:
@@ -283,6 +240,7 @@ def _seed(
     tries: int,
     relations: list[str],
     examples: int,
+    restarts: int,
     config: TrainConfig,
     progress: bool,
     device: Any,
@@ -295,7 +253,10 @@ def _seed(
     models: dict[str, ScoreModel] = {}
     if LANGEVIN in chosen or REFINED in chosen:
         t0 = time.perf_counter()
-        models = train_relations(relations, seed, config, device, cache, examples=examples)
+        models = train_relations(
+            relations, seed, config, device, cache, examples=examples, restarts=restarts,
+            log=log if progress else None,
+        )  # fmt: skip
         for m in (LANGEVIN, REFINED):
             if m in chosen:
                 seconds[m] += time.perf_counter() - t0
@@ -331,6 +292,7 @@ def run(
     methods: list[str] | None = None,
     relations: Sequence[str] = PROBLEM_RELATIONS,
     examples: int = EXAMPLES,
+    restarts: int = RESTARTS,
     config: TrainConfig | None = None,
     progress: bool = True,
     log: Callable[[str], None] = print,
@@ -342,20 +304,25 @@ def run(
     """The experiment over seeds ``0 .. seeds-1``, each its own relation models and problems: the fraction
     of ``problems`` problems of each size in ``sizes`` that each method solves within ``tries``.
     ``relations``: those the problems draw from (each one model, trained on ``examples`` example
-    scenes); ``config``: their training (default
-    :func:`train_config`); ``jobs > 1``: the seeds in that many worker processes (the figures do not
+    scenes, and again at most ``restarts`` times while its edge is flat); ``config``: their training
+    (default :func:`train_config`); ``jobs > 1``: the seeds in that many worker processes (the figures do not
     depend on it); ``sweep``: where each seed's record is kept, to resume from (:mod:`scenescore.tasks`)."""
     chosen = methods or list(METHODS)
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
         raise SceneError(f"unknown method(s) {unknown}; choose from {METHODS}")
-    if tries < 1 or problems < 1 or seeds < 1 or examples < 1:
+    if tries < 1 or problems < 1 or seeds < 1 or examples < 1 or restarts < 0:
         raise SceneError(
-            "relations: seeds, problems, tries and examples must be at least 1, got "
-            f"{seeds}, {problems}, {tries}, {examples}"
+            "relations: seeds, problems, tries and examples must be at least 1 and restarts at least 0, got "
+            f"{seeds}, {problems}, {tries}, {examples}, {restarts}"
         )
     res = RelationsResult(
-        sizes=list(sizes), problems=problems, tries=tries, relations=list(relations), examples=examples
+        sizes=list(sizes),
+        problems=problems,
+        tries=tries,
+        relations=list(relations),
+        examples=examples,
+        restarts=restarts,
     )
     one = partial(
         _seed,
@@ -365,6 +332,7 @@ def run(
         tries=tries,
         relations=list(relations),
         examples=examples,
+        restarts=restarts,
         config=config or train_config(),
         progress=progress,
         device=device,
@@ -377,6 +345,7 @@ def run(
         "tries": tries,
         "relations": list(relations),
         "examples": examples,
+        "restarts": restarts,
         "training": config or train_config(),
         "device": str(device),
     }  # every setting a seed's record depends on
