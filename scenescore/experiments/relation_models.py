@@ -149,8 +149,8 @@ def train_relation(
     :func:`validation_examples` ranks fewer than :data:`SHARP` of the broken moves worse; the first sharp
     model, else the sharpest. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``log``: told
     of each flat model trained again."""
-    scenes, cfg = relation_training(relation, seed, config, examples)
-    held = validation_examples(relation, seed, examples)
+    stream, cfg = relation_training(relation, seed, config, examples + VALIDATION)
+    scenes, held = stream[:examples], stream[examples:]  # held: validation_examples(relation, seed, examples)
     best: tuple[float, ScoreModel] | None = None
     for m in range(restarts + 1):
         model = train(scenes, cfg, seed=member_seed(seed, m), progress=progress, device=device, cache=cache)

@@ -54,6 +54,7 @@ def _edges(monkeypatch, shares):
     real_train = RM.train
 
     def train(scenes, cfg, seed, **kw):
+        assert len(scenes) == 8  # the examples asked for; the validation examples follow them
         seeds.append(seed)
         return real_train(scenes, cfg, seed=seed, **kw)
 
