@@ -5,23 +5,23 @@
 
 The relations experiment sums one energy per relation; a problem of N objects asks for about 1.5 N of
 them, so its solved fraction is bounded by how often each energy alone is satisfied. Here each relation
-model (trained as `scenescore experiment relations` trains it, on 2048 example scenes for the seed, and
-trained again with the next member seed, at most ``--restarts`` times, while its edge on 100 further
-examples of its training stream is flat; each restart is printed) is bound to problems that ask for that relation only (2 objects, 3 for ``between``: the problem
-generator's own, restricted to the relation), with non-overlap and bounds, and sampled as the
-experiment's ``Relations (langevin>alm)`` row samples (80 particles with the heading sweep, each refined,
-the 10 best by the cost kept). The table gives, per relation, the fraction of the kept samples that
-solve their problem (every checker, non-overlap, bounds) and the fraction of problems with at least
-one; a relation with few samples accepted limits every problem that names it. ``--set`` changes the
-models' training settings (``TrainConfig`` fields, as for ``scenescore train --set``), to compare them
-on these tables.
+model is trained as `scenescore experiment relations` trains it: on 2048 example scenes for the seed,
+and trained again with the next member seed, at most ``--restarts`` times, while its edge on 100
+further examples of its training stream is flat (each restart is printed). It is bound to problems that
+ask for that relation only (2 objects, 3 for ``between``: the problem generator's own, restricted to
+the relation), with non-overlap and bounds, and sampled as the experiment's ``Relations
+(langevin>alm)`` row samples (80 particles with the heading sweep, each refined, the 10 best by the cost
+kept). The first table gives, per relation, the fraction of the kept samples that solve their problem
+(every checker, non-overlap, bounds) and the fraction of problems with at least one; a relation with
+few samples accepted limits every problem that names it. ``--set`` changes the models' training
+settings (``TrainConfig`` fields, as for ``scenescore train --set``), to compare them on these tables.
 
 The second table is the edge: ``--edge`` held-out examples of each relation (its scenario's test
 stream for the seed), the subject moved 1.5 and 3 cm in 16 directions; of the moves the checker
 rejects, the fraction the energy ranks above the example itself, and the mean energy rise, beside the
-seed the kept model was trained with. In a sum of
-many energies a relation whose broken arrangements cost no more than its true ones is the first to give
-way; alone, sampling many particles and keeping the best hides it.
+seed the kept model was trained with. In a sum of many energies a relation whose broken arrangements
+cost no more than its true ones is the first to give way; alone, sampling many particles and keeping
+the best hides it.
 """
 
 from __future__ import annotations

@@ -35,8 +35,8 @@ from scenescore.experiments.bundled import (
     relation_figure,
     tolerance,
 )
-from scenescore.experiments.relation_models import relation_training, train_relation
 from scenescore.experiments.relation_models import train_config as relations_train_config
+from scenescore.experiments.relation_models import train_relation
 from scenescore.learn import TrainConfig, train
 from scenescore.models import load
 from scenescore.provenance import git_commit
@@ -64,9 +64,9 @@ def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> 
     again with the next member seed while its edge is flat). ``iterations``: instead of either default."""
     t0 = time.perf_counter()
     if name in RELATION_MODELS:
-        rel = name.removeprefix("relation-")
-        train_s, config = relation_training(rel, seed, relations_train_config(iterations))
-        model = train_relation(rel, seed, relations_train_config(iterations), progress=True)
+        model = train_relation(
+            name.removeprefix("relation-"), seed, relations_train_config(iterations), progress=True
+        )
     else:
         train_s, _ = get(name).split(seed)
         config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
@@ -76,8 +76,8 @@ def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> 
     model.save(path)
     return {
         "seed": seed,
-        "config": config.to_dict(),
-        "train_scenes": len(train_s),
+        "config": model.info.train_config,  # the settings it trained with
+        "train_scenes": model.info.scenes,
         "commit": git_commit(),
         "train_seconds": round(seconds, 1),
         "bytes": path.stat().st_size,

@@ -80,11 +80,6 @@ def train_config(iterations: int | None = None, quick: bool = False) -> TrainCon
     return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED)
 
 
-def _check_relation(relation: str) -> None:
-    if relation not in RELATIONS:
-        raise SceneError(f"no relation {relation!r}; relations: {', '.join(RELATIONS)}")
-
-
 def relation_training(
     relation: str, seed: int, config: TrainConfig, examples: int = EXAMPLES
 ) -> tuple[list[Scene], TrainConfig]:
@@ -92,16 +87,16 @@ def relation_training(
     training stream for ``seed`` (``relation-<name>``), and ``config`` with round objects' headings
     visible where the relation reads the subject's heading. The experiment's models and the shipped
     ones (``scripts/pretrain.py``) train on these."""
-    _check_relation(relation)
+    if relation not in RELATIONS:
+        raise SceneError(f"no relation {relation!r}; relations: {', '.join(RELATIONS)}")
     scenes = get(f"relation-{relation}", n_train=examples).split(seed)[0]
     return scenes, replace(config, round_invariant=False) if RELATIONS[relation].reads_heading else config
 
 
 def validation_examples(relation: str, seed: int, examples: int, count: int = VALIDATION) -> list[Scene]:
     """The ``count`` examples of ``relation``'s training stream for ``seed`` that follow the ``examples``
-    a model trains on: the same generator and stream, never trained on."""
-    _check_relation(relation)
-    return get(f"relation-{relation}", n_train=examples + count).split(seed)[0][examples:]
+    a model trains on: the same generator and stream (:func:`relation_training`'s), never trained on."""
+    return relation_training(relation, seed, TrainConfig(), examples + count)[0][examples:]
 
 
 def edge(model: ScoreModel, relation: str, examples: Sequence[Scene], moves: Sequence[float]) -> list[Edge]:
