@@ -28,6 +28,7 @@ OWN_OPTIONS: dict[str, tuple[str, ...]] = {
     "--tries": ("relations",),
     "--examples": ("relations",),
     "--restarts": ("relations",),
+    "--pool": ("relations",),
     "--alm": ("compose",),
     "--from-images": ("missing", "novel"),
     "--encoders": ("novel",),
@@ -207,8 +208,15 @@ def _add_relations(p: argparse.ArgumentParser) -> None:
         "--tries",
         type=number(1, 10_000, integer=True),
         default=None,
-        help="relations: tries (samples) per problem and method, the best of 8 particles each; rejection "
-        "sampling draws tries x 800 (default 10)",
+        help="relations: tries (samples) per problem and method, each the best of --pool particles; "
+        "rejection sampling draws tries x pool x 100 (default 10)",
+    )
+    p.add_argument(
+        "--pool",
+        type=number(1, 1000, integer=True),
+        default=None,
+        help="relations: Langevin particles per try, each try the best of them by the method's own cost "
+        "(default 8)",
     )
     p.add_argument(
         "--examples",

@@ -355,6 +355,7 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         sizes=sizes,
         problems=problems,
         tries=args.tries or 10,
+        pool=args.pool or relations.POOL,
         methods=_methods(args),
         examples=args.examples or (256 if args.quick else relations.EXAMPLES),
         restarts=relation_models.RESTARTS if args.restarts is None else args.restarts,
@@ -376,9 +377,9 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         f"{res.restarts} times, while its edge on {relation_models.VALIDATION} held-out examples "
         "is flat); problems of N objects with about 1.5 N relations, non-overlap and "
         "bounds, drawn backwards from "
-        f"a random arrangement; each try is the best of {relations.POOL} particles by the method's own cost, "
+        f"a random arrangement; each try is the best of {res.pool} particles by the method's own cost, "
         f"every heading swept over {relations.HEADINGS} before the final descent; "
-        f"rejection sampling draws up to {res.tries * relations.POOL * relations.STEPS} uniform arrangements "
+        f"rejection sampling draws up to {res.tries * res.pool * relations.STEPS} uniform arrangements "
         "per problem.\n\n"
     )
     md += relations.format_relations(res) + "\n\nFigure: solved.png (fraction solved against N)."

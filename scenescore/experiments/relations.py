@@ -12,7 +12,7 @@ never saw (:mod:`~scenescore.experiments.relation_models`).
 
 - Relations (langevin): the relation models bound to the problem's objects (one
   :class:`~scenescore.costs.Relation` term per relation, its instances batched) + 10 * hinge
-  collision + 10 * bounds, sampled by ``langevin`` with ``tries * POOL`` particles from uniform
+  collision + 10 * bounds, sampled by ``langevin`` with ``tries * pool`` particles from uniform
   starts, each object's heading swept (:data:`HEADINGS`) before the chain's final descent, since a
   relation such as ``facing`` has a narrow basin in the heading; the tries are the ``tries`` best
   particles by the method's own judgement (within the collision and bounds tolerance first, then the
@@ -26,7 +26,7 @@ never saw (:mod:`~scenescore.experiments.relation_models`).
   as the row above. It sees the objects, never the relations a problem asks for: the baseline that tells
   what knowing the relations buys.
 - Rejection (uniform): arrangements drawn uniformly (positions in the bounds, headings in a full
-  turn) until one solves the problem, at most ``tries * POOL * STEPS`` of them: as many as the
+  turn) until one solves the problem, at most ``tries * pool * STEPS`` of them: as many as the
   Langevin stage evaluates the cost at.
 
 Time per problem is the wall time of solving (and checking) one problem, training not included.
@@ -93,8 +93,8 @@ METHODS = [LANGEVIN, REFINED, WHOLE, REJECTION]
 WHOLE_SCENES = 48  # training arrangements of each size for the whole-scene energy
 WHOLE_STREAM = 10_000  # their generator's seed is this plus the seed: never a test problem's
 SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
-STEPS = 100  # Langevin steps per particle (the rejection budget is tries * POOL * STEPS draws)
-POOL = 8  # Langevin particles per try: the tries are the best tries of tries * POOL particles
+STEPS = 100  # Langevin steps per particle (the rejection budget is tries * pool * STEPS draws)
+POOL = 8  # Langevin particles per try by default: the tries are the best tries of tries * pool particles
 HEADINGS = 24  # the chain's heading sweep: each object turned to the best of 24 headings (15 degrees apart)
 COLLISION_WEIGHT = 10.0  # the hinge collision and bounds penalties' weight beside the relation energies
 #: the refinement's ``alm`` options: descend until feasible and the objective nearly flat
@@ -112,6 +112,7 @@ class RelationsResult(SeedResults):
     tries: int = 0
     examples: int = 0
     restarts: int = 0
+    pool: int = POOL
     relations: list[str] = field(default_factory=list)
 
 
@@ -178,12 +179,14 @@ def rejection(problem: RelationProblem, budget: int, seed: int) -> bool:
     return False
 
 
-def sample_tries(prob: Problem, tries: int, seed: int, refine: bool) -> list[tuple[np.ndarray, float]]:
-    """How the experiment samples ``prob``: ``langevin`` with ``tries * POOL`` particles (the heading
+def sample_tries(
+    prob: Problem, tries: int, seed: int, refine: bool, pool: int = POOL
+) -> list[tuple[np.ndarray, float]]:
+    """How the experiment samples ``prob``: ``langevin`` with ``tries * pool`` particles (the heading
     sweep on), then (``refine``) ``alm`` from every particle; for each stage its ``tries`` best
     (:func:`best_tries`) and the seconds so far (the refinement's include the sampling's)."""
     t0 = time.perf_counter()
-    options = {"particles": tries * POOL, "steps": STEPS, "heading_sweep": HEADINGS}
+    options = {"particles": tries * pool, "steps": STEPS, "heading_sweep": HEADINGS}
     r = solve(prob, "langevin", seed=seed, options={"langevin": options})
     assert r.samples is not None
     stages = [(best_tries(prob, r.samples, tries), time.perf_counter() - t0)]
@@ -195,10 +198,12 @@ def sample_tries(prob: Problem, tries: int, seed: int, refine: bool) -> list[tup
 
 
 def _sample_refine(
-    problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool
+    problem: RelationProblem, prob: Problem, tries: int, seed: int, refine: bool, pool: int
 ) -> tuple[tuple[bool, float], tuple[bool, float] | None]:
     """:func:`sample_tries`: whether one of each stage's tries solves ``problem``, and its seconds."""
-    stages = [(_any_solved(problem, chosen), t) for chosen, t in sample_tries(prob, tries, seed, refine)]
+    stages = [
+        (_any_solved(problem, chosen), t) for chosen, t in sample_tries(prob, tries, seed, refine, pool)
+    ]
     return stages[0], stages[1] if refine else None
 
 
@@ -208,13 +213,15 @@ def _solve_one(
     whole: ScoreModel | None,
     chosen: list[str],
     tries: int,
+    pool: int,
     seed: int,
 ) -> dict[str, tuple[bool, float]]:
-    """Whether each chosen method solves ``problem`` within ``tries``, and its seconds."""
+    """Whether each chosen method solves ``problem`` within ``tries`` (each the best of ``pool`` particles),
+    and its seconds."""
     out: dict[str, tuple[bool, float]] = {}
     if LANGEVIN in chosen or REFINED in chosen:
         sampled, refined = _sample_refine(
-            problem, relation_cost_problem(problem, models), tries, seed, REFINED in chosen
+            problem, relation_cost_problem(problem, models), tries, seed, REFINED in chosen, pool
         )
         if LANGEVIN in chosen:
             out[LANGEVIN] = sampled
@@ -222,12 +229,12 @@ def _solve_one(
             out[REFINED] = refined
     if WHOLE in chosen:
         assert whole is not None
-        _, refined = _sample_refine(problem, whole_scene_problem(problem, whole), tries, seed, True)
+        _, refined = _sample_refine(problem, whole_scene_problem(problem, whole), tries, seed, True, pool)
         assert refined is not None
         out[WHOLE] = refined
     if REJECTION in chosen:
         t0 = time.perf_counter()
-        out[REJECTION] = (rejection(problem, tries * POOL * STEPS, seed), time.perf_counter() - t0)
+        out[REJECTION] = (rejection(problem, tries * pool * STEPS, seed), time.perf_counter() - t0)
     return out
 
 
@@ -238,6 +245,7 @@ def _seed(
     sizes: list[int],
     problems: int,
     tries: int,
+    pool: int,
     relations: list[str],
     examples: int,
     restarts: int,
@@ -272,7 +280,7 @@ def _seed(
         solved = dict.fromkeys(chosen, 0)
         spent = dict.fromkeys(chosen, 0.0)
         for k, prob in enumerate(relation_problems(n, problems, seed, relations)):
-            for m, (ok, dt) in _solve_one(prob, models, whole, chosen, tries, 1000 * n + k).items():
+            for m, (ok, dt) in _solve_one(prob, models, whole, chosen, tries, pool, 1000 * n + k).items():
                 solved[m] += int(ok)
                 spent[m] += dt
         for m in chosen:
@@ -289,6 +297,7 @@ def run(
     sizes: Sequence[int] = SIZES,
     problems: int = 100,
     tries: int = 10,
+    pool: int = POOL,
     methods: list[str] | None = None,
     relations: Sequence[str] = PROBLEM_RELATIONS,
     examples: int = EXAMPLES,
@@ -302,7 +311,8 @@ def run(
     sweep: Sweep | None = None,
 ) -> RelationsResult:
     """The experiment over seeds ``0 .. seeds-1``, each its own relation models and problems: the fraction
-    of ``problems`` problems of each size in ``sizes`` that each method solves within ``tries``.
+    of ``problems`` problems of each size in ``sizes`` that each method solves within ``tries``, each try
+    the best of ``pool`` particles.
     ``relations``: those the problems draw from (each one model, trained on ``examples`` example
     scenes, and again at most ``restarts`` times while its edge is flat); ``config``: their training
     (default :func:`train_config`); ``jobs > 1``: the seeds in that many worker processes (the figures do not
@@ -311,15 +321,16 @@ def run(
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
         raise SceneError(f"unknown method(s) {unknown}; choose from {METHODS}")
-    if tries < 1 or problems < 1 or seeds < 1 or examples < 1 or restarts < 0:
+    if min(tries, problems, seeds, examples, pool) < 1 or restarts < 0:
         raise SceneError(
-            "relations: seeds, problems, tries and examples must be at least 1 and restarts at least 0, got "
-            f"{seeds}, {problems}, {tries}, {examples}, {restarts}"
+            "relations: seeds, problems, tries, pool and examples must be at least 1 and restarts at least 0, "
+            f"got {seeds}, {problems}, {tries}, {pool}, {examples}, {restarts}"
         )
     res = RelationsResult(
         sizes=list(sizes),
         problems=problems,
         tries=tries,
+        pool=pool,
         relations=list(relations),
         examples=examples,
         restarts=restarts,
@@ -330,6 +341,7 @@ def run(
         sizes=list(sizes),
         problems=problems,
         tries=tries,
+        pool=pool,
         relations=list(relations),
         examples=examples,
         restarts=restarts,
@@ -343,6 +355,7 @@ def run(
         "sizes": list(sizes),
         "problems": problems,
         "tries": tries,
+        "pool": pool,
         "relations": list(relations),
         "examples": examples,
         "restarts": restarts,
