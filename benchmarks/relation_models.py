@@ -10,7 +10,7 @@ and trained again with the next member seed, at most ``--restarts`` times, while
 further examples of its training stream is flat (each restart is printed). It is bound to problems that
 ask for that relation only (2 objects, 3 for ``between``: the problem generator's own, restricted to
 the relation), with non-overlap and bounds, and sampled as the experiment's ``Relations
-(langevin>alm)`` row samples (80 particles with the heading sweep, each refined, the 10 best by the cost
+(langevin>alm)`` row samples (160 particles with the heading sweep, each refined, the 10 best by the cost
 kept). The first table gives, per relation, the fraction of the kept samples that solve their problem
 (every checker, non-overlap, bounds) and the fraction of problems with at least one; a relation with
 few samples accepted limits every problem that names it. ``--set`` changes the models' training

@@ -216,7 +216,7 @@ def _add_relations(p: argparse.ArgumentParser) -> None:
         type=number(1, 1000, integer=True),
         default=None,
         help="relations: Langevin particles per try, each try the best of them by the method's own cost "
-        "(default 8)",
+        "(default 16)",
     )
     p.add_argument(
         "--examples",

@@ -94,7 +94,7 @@ WHOLE_SCENES = 48  # training arrangements of each size for the whole-scene ener
 WHOLE_STREAM = 10_000  # their generator's seed is this plus the seed: never a test problem's
 SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
 STEPS = 100  # Langevin steps per particle (the rejection budget is tries * pool * STEPS draws)
-POOL = 8  # Langevin particles per try by default: the tries are the best tries of tries * pool particles
+POOL = 16  # Langevin particles per try by default: the tries are the best tries of tries * pool particles
 HEADINGS = 24  # the chain's heading sweep: each object turned to the best of 24 headings (15 degrees apart)
 COLLISION_WEIGHT = 10.0  # the hinge collision and bounds penalties' weight beside the relation energies
 #: the refinement's ``alm`` options: descend until feasible and the objective nearly flat
