@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from scenescore.cli import main
-from scenescore.experiments.relations import METHODS, best_tries, relation_cost_problem, train_relations
+from scenescore.experiments.relations import METHODS, best_tries, relation_cost_problem, run, train_relations
 from scenescore.learn import TrainConfig
 from scenescore.scenarios.relation_problems import (
     PROBLEM_RELATIONS,
@@ -81,12 +81,26 @@ def test_bad_problem_requests_are_clear_errors():
         relation_problem(11, 0)
     with pytest.raises(SceneError, match="centred_on"):
         relation_problem(3, 0, relations=("centred_on",))
+    with pytest.raises(SceneError, match="pool"):
+        run(seeds=1, problems=1, pool=0)
 
 
 def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
     out = tmp_path / "rel"
     argv = ["experiment", "relations", "--seeds", "1", "--problems", "2", "--sizes", "2,3", "--tries", "2"]
-    argv += ["--iterations", "5", "--examples", "8", "--restarts", "0", "--jobs", "1", "--quiet"]
+    argv += [
+        "--pool",
+        "3",
+        "--iterations",
+        "5",
+        "--examples",
+        "8",
+        "--restarts",
+        "0",
+        "--jobs",
+        "1",
+        "--quiet",
+    ]
     argv += ["--out", str(out)]
     assert main(argv) == 0
     doc = json.loads((out / "results.json").read_text())
@@ -97,11 +111,16 @@ def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
             assert 0.0 <= r[f"solved_{n}"] <= 1.0 and r[f"solved_{n}"] * 2 == int(r[f"solved_{n}"] * 2)
             assert r[f"seconds_{n}"] > 0
     assert (out / "solved.png").stat().st_size > 0
-    assert "trained again with the next member seed, at most 0 times" in (out / "table.md").read_text()
+    table = (out / "table.md").read_text()
+    assert "trained again with the next member seed, at most 0 times" in table
+    assert "each try is the best of 3 particles" in table and "draws up to 600 uniform" in table
     printed = capsys.readouterr().out
     assert "| Rejection (uniform) |" in printed and "N=3" in printed
     assert main(["experiment", "relations", "--sizes", "1,2", "--out", str(out)]) == 2
     assert "--sizes" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["experiment", "relations", "--pool", "0", "--out", str(out)])
+    assert "--pool" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
