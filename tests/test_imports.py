@@ -54,6 +54,7 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.experiments.bundled", 11),  # the figure each pretrained model is documented with
     ("scenescore.experiments.relations", 11),  # summed relation energies on random problems, per N
     ("scenescore.experiments.relation_models", 11),  # one model per relation, kept when its edge is sharp
+    ("scenescore.experiments.relation_methods", 11),  # how each relations method solves one problem
     ("scenescore.cli", 12),
     ("scenescore.cli.export", 12),  # `scenescore export`
     ("scenescore.cli.reference", 12),  # the command-line reference page, rendered from the parser

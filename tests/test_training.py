@@ -288,3 +288,8 @@ def test_model_cache_trains_each_model_once_and_only_where_asked(tmp_path, monke
     monkeypatch.setattr(loop, "fit", never)
     with pytest.raises(AssertionError, match="trained again"):
         train(scenes, cfg, seed=1, progress=False)  # without a cache nothing is read
+    from scenescore.learn import cache
+
+    monkeypatch.setattr(cache, "code_version", lambda: "other code")
+    with pytest.raises(AssertionError, match="trained again"):
+        train(scenes, cfg, seed=1, progress=False, cache=folder)  # other code: not read

@@ -130,7 +130,9 @@ def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tm
     assert jobs == [2, 1, 2] and "experiment: 2 worker processes" in capsys.readouterr().out
 
 
-def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(monkeypatch, tmp_path):
+def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run_or_the_one_given(
+    monkeypatch, tmp_path
+):
     import os
 
     from scenescore.cli import experiment, main
@@ -155,6 +157,21 @@ def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run(mo
     seen.clear()
     assert main(["experiment", "missing", "--jobs", "1", "--out", str(tmp_path / "m")]) == 0
     assert seen == [("missing", None)]  # one experiment alone keeps no models
+    seen.clear()
+    kept = tmp_path / "models"
+    assert (
+        main(
+            ["experiment", "missing", "--jobs", "1", "--model-cache", str(kept), "--out", str(tmp_path / "m")]
+        )
+        == 0
+    )
+    assert seen == [("missing", str(kept))]
+    seen.clear()
+    assert (
+        main(["experiment", "all", "--jobs", "1", "--model-cache", str(kept), "--out", str(tmp_path / "all")])
+        == 0
+    )
+    assert seen == [(n, str(kept)) for n in experiment.EXPERIMENTS]  # the folder given, for every experiment
 
 
 def _square(x: int, log) -> int:

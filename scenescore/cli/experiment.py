@@ -88,8 +88,8 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         default=None,
         help="worker processes, one thread each (default: one per usable core; with --device cuda, as many "
         "sharing the GPU as its free memory holds at 2 GiB each, at most one per usable core; "
-        "1 runs everything in this process): compose, heatmap, missing, novel and relations run their seeds in them, zoo its "
-        "scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
+        "1 runs everything in this process): compose, heatmap, missing and novel run their seeds in them, relations its "
+        "seed and size pairs, zoo its scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
     )
     p.add_argument(
         "--fresh",
@@ -97,6 +97,16 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         help="compute every task again: by default each finished task's record is kept under OUT/tasks and "
         "the same command run again reuses those of the same settings and code, computing only the rest "
         "(an interrupted run resumes)",
+    )
+    p.add_argument(
+        "--model-cache",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="keep every model the run trains in DIR, and read from there each model a run of the same "
+        "code trains alike (the same data, settings, seed and device); the models are named by all "
+        "of these, so DIR may serve many runs (default: none kept; all shares a folder of its own "
+        "between its experiments for the length of the run)",
     )
     p.add_argument(
         "--train-scenes",
@@ -298,15 +308,17 @@ def run(args: argparse.Namespace) -> int:
                     f"sharing {args.device}, as many as its free memory holds and at most one per usable core"
                 )
             print(f"experiment: {args.jobs} worker processes, {how} (--jobs 1: one process)")
-    args.model_cache = None  # the folder every runner passes to training as its model cache
+    # args.model_cache: the folder every runner passes to training as its model cache
     if args.name != "all":
         return _run_each(args, [args.name])
     import tempfile
 
     root = args.out or Path("runs") / "experiment-all"
     root.mkdir(parents=True, exist_ok=True)
+    if args.model_cache is not None:
+        return _run_each(args, EXPERIMENTS, root)
     # a model that two experiments train alike (the dining energy of Table 1 and of tidying, say) is
-    # trained once; the folder lives as long as this run, so no model of other code is ever read
+    # trained once, in a folder that lives as long as this run
     with tempfile.TemporaryDirectory(prefix=".models-", dir=root) as folder:
         args.model_cache = Path(folder)
         return _run_each(args, EXPERIMENTS, root)

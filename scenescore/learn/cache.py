@@ -1,9 +1,11 @@
 """Where a model cache keeps a trained model: one file per training, named by what decides its weights.
 
 ``train(..., cache=folder)`` loads the model from there when it was trained before, else trains it and
-keeps it there. ``scenescore experiment all`` passes one folder to every experiment, so a model two
-experiments train alike is trained once; the folder lives as long as the run, so no model of another
-version of the code is ever read.
+keeps it there. The name hashes the scenes, the settings, the seed, the device and the code's version
+(:func:`~scenescore.tasks.code_version`: the package's source and the versions of torch and numpy), so a
+folder kept across runs never serves a model that other code trained. ``scenescore experiment all``
+passes one folder to every experiment, so a model two experiments train alike is trained once;
+``--model-cache DIR`` keeps them for the next run.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import torch
 
 from ..encoders import Encoder
 from ..scene import Scene
+from ..tasks import code_version
 from .config import TrainConfig
 
 __all__ = ["cached_path", "digest"]
@@ -39,7 +42,7 @@ def cached_path(
     device: torch.device,
 ) -> Path | None:
     """The file in ``folder`` for the model of this training: the same scenes, validation scenes,
-    settings, seed and device (not the thread count, which the weights do not depend on:
+    settings, seed, device and code (not the thread count, which the weights do not depend on:
     :mod:`scenescore.threads`). None without a folder, and with an encoder given (a model of another
     encoder is not kept)."""
     if folder is None or encoder is not None:
@@ -50,5 +53,6 @@ def cached_path(
         "config": cfg.to_dict(),
         "seed": int(seed),
         "device": str(device),
+        "code": code_version(),
     }
     return Path(folder) / f"{digest(what)}.ckpt"

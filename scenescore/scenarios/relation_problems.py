@@ -177,7 +177,7 @@ def relation_problem(
     n: int, seed: int, relations: Sequence[str] = PROBLEM_RELATIONS, per_object: float = RELATIONS_PER_OBJECT
 ) -> RelationProblem:
     """One random consistent problem of ``n`` objects (2 to :data:`MAX_OBJECTS`) and ``round(per_object
-    * n)`` relations drawn among ``relations`` (fewer when fewer hold): a relation first, uniformly among
+    * n)`` relations drawn among ``relations`` (fewer when fewer hold, at least one): a relation first, uniformly among
     those with an instance that holds and says something not yet asked, then one of those instances."""
     if not 2 <= n <= MAX_OBJECTS:
         raise SceneError(f"relation problem: n must be 2 to {MAX_OBJECTS} objects, got {n}")
@@ -188,14 +188,19 @@ def relation_problem(
         )
     rng = np.random.default_rng(seed)
     bounds = ((-HALF[0], -HALF[1]), HALF)
-    for _ in range(MAX_RESTARTS):
+    for _ in range(MAX_RESTARTS):  # an arrangement in which one of the relations holds
         placed = _arrange(rng, _objects(rng, n), bounds)
-        if placed is not None:
+        if placed is None:
+            continue
+        scene = Scene(placed, bounds, meta={"scenario": "relation-problem", "seed": int(seed)})
+        pool = _holding(scene, relations)
+        if any(pool.values()):
             break
-    else:  # pragma: no cover - ten objects of at most 20 cm always fit
-        raise SceneError(f"relation problem: no arrangement of {n} objects in {MAX_RESTARTS} tries")
-    scene = Scene(placed, bounds, meta={"scenario": "relation-problem", "seed": int(seed)})
-    pool = _holding(scene, relations)
+    else:  # pragma: no cover - ten objects of at most 20 cm always fit, and some relation holds
+        raise SceneError(
+            f"relation problem: no arrangement of {n} objects in {MAX_RESTARTS} tries in which one of "
+            f"{', '.join(relations)} holds"
+        )
     chosen: list[Instance] = []
     said: set[Instance] = set()
     for _ in range(int(round(per_object * n))):

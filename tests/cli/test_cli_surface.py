@@ -126,7 +126,9 @@ def test_experiment_options_are_owned_and_default_to_unset():
     parser = _subparsers()["experiment"]
     options = _options(parser)
     common = {"-h", "--help", "--seeds", "--out", "--quick", "--seed", "--quiet", "--memory-gb", "--threads"}
-    common |= {"--jobs", "--fresh", "--executor"} | {o for o in options if o.startswith("--slurm-")}
+    common |= {"--jobs", "--fresh", "--model-cache", "--executor"} | {
+        o for o in options if o.startswith("--slurm-")
+    }
     assert set(options) - common - {"--device"} == set(OWN_OPTIONS)
     for option, owners in OWN_OPTIONS.items():
         assert options[option].default in (None, False), option  # "given" is "not the default"

@@ -71,6 +71,8 @@ def test_problems_are_consistent_seeded_and_about_one_and_a_half_relations_per_o
     assert [p.relations for p in again] == [p.relations for p in ps[:2]]
     np.testing.assert_array_equal(again[1].scene.poses(), ps[1].scene.poses())
     assert relation_problems(n, 1, seed=4)[0].relations != ps[0].relations
+    few = relation_problems(n, 8, seed=0, relations=["left_of", "near"])
+    assert all(p.relations and p.solved(p.scene.poses()) for p in few)  # drawn again until one holds
 
 
 def test_bad_problem_requests_are_clear_errors():
@@ -149,3 +151,32 @@ def test_the_tries_are_the_best_particles_by_the_methods_own_cost(tiny_models):
     expected = sorted(np.flatnonzero(feasible), key=lambda k: costs[k])[:3]
     np.testing.assert_allclose(chosen, samples[expected])
     assert not any(np.allclose(c, outside) for c in chosen)
+
+
+def test_each_seed_and_size_is_a_task_and_a_seeds_models_are_trained_once(tmp_path, monkeypatch):
+    from scenescore.learn import loop
+    from scenescore.tasks import Sweep
+
+    fits = []
+    real = loop.fit
+
+    def counted(*a, **k):
+        fits.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(loop, "fit", counted)
+    lines: list[str] = []
+    settings = dict(
+        problems=1, tries=1, pool=2, methods=["Relations (langevin>alm)"], relations=["left_of", "near"],
+        examples=8, restarts=0, config=TrainConfig(iterations=2), progress=False, log=lines.append,
+    )  # fmt: skip
+    both = run(seeds=2, sizes=[2, 3], sweep=Sweep(tmp_path / "tasks"), **settings)
+    assert len(fits) == 4  # two relations for each of two seeds, whatever the sizes: the run's own cache
+    assert lines[-1] == "relations: reused 0 of 4 tasks (" + str(tmp_path / "tasks") + ")"
+    (per_seed,) = both.per_seed.values()
+    assert [list(f) for f in per_seed] == [["solved_2", "seconds_2", "solved_3", "seconds_3"]] * 2
+    three = run(seeds=2, sizes=[3], sweep=Sweep(tmp_path / "tasks"), **settings)  # a run split by size
+    assert lines[-1].startswith("relations: reused 2 of 2 tasks") and len(fits) == 4
+    assert [f["solved_3"] for f in three.per_seed["Relations (langevin>alm)"]] == [
+        f["solved_3"] for f in per_seed
+    ]
