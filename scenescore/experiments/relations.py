@@ -152,8 +152,9 @@ def _task(
     """One seed and size of :func:`run`: per method, ``solved_<N>`` and ``seconds_<N>`` (per problem),
     and the method's seconds in all (getting its models included)."""
     seed, n = task.seed, int(json.loads(task.config)["size"])
+    told = progress and n == sizes[0]  # the models' restarts are told once per seed, not once per size
     models, whole, seconds = _models(
-        chosen, sizes, seed, relations, examples, restarts, config, progress, log, device, cache
+        chosen, sizes, seed, relations, examples, restarts, config, told, log, device, cache
     )
     solved = dict.fromkeys(chosen, 0)
     spent = dict.fromkeys(chosen, 0.0)
