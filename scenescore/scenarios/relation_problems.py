@@ -177,8 +177,9 @@ def relation_problem(
     n: int, seed: int, relations: Sequence[str] = PROBLEM_RELATIONS, per_object: float = RELATIONS_PER_OBJECT
 ) -> RelationProblem:
     """One random consistent problem of ``n`` objects (2 to :data:`MAX_OBJECTS`) and ``round(per_object
-    * n)`` relations drawn among ``relations`` (fewer when fewer hold, at least one): a relation first, uniformly among
-    those with an instance that holds and says something not yet asked, then one of those instances."""
+    * n)`` relations drawn among ``relations`` (fewer when fewer hold, at least one): a relation first,
+    uniformly among those with an instance that holds and says something not yet asked, then one of
+    those instances."""
     if not 2 <= n <= MAX_OBJECTS:
         raise SceneError(f"relation problem: n must be 2 to {MAX_OBJECTS} objects, got {n}")
     unknown = [r for r in relations if r not in PROBLEM_RELATIONS]
