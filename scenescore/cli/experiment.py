@@ -88,8 +88,9 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         default=None,
         help="worker processes, one thread each (default: one per usable core; with --device cuda, as many "
         "sharing the GPU as its free memory holds at 2 GiB each, at most one per usable core; "
-        "1 runs everything in this process): compose, heatmap, missing and novel run their seeds in them, relations its "
-        "seed and size pairs, zoo its scenario and seed pairs, tidy its scenarios; the figures do not depend on it",
+        "1 runs everything in this process): compose, heatmap, missing and novel run their seeds in "
+        "them, relations its seed and size pairs, zoo its scenario and seed pairs, tidy its scenarios; "
+        "the figures do not depend on it",
     )
     p.add_argument(
         "--fresh",
@@ -311,16 +312,14 @@ def run(args: argparse.Namespace) -> int:
     # args.model_cache: the folder every runner passes to training as its model cache
     if args.name != "all":
         return _run_each(args, [args.name])
-    import tempfile
+    from ..learn.cache import run_cache
 
     root = args.out or Path("runs") / "experiment-all"
     root.mkdir(parents=True, exist_ok=True)
-    if args.model_cache is not None:
-        return _run_each(args, EXPERIMENTS, root)
     # a model that two experiments train alike (the dining energy of Table 1 and of tidying, say) is
-    # trained once, in a folder that lives as long as this run
-    with tempfile.TemporaryDirectory(prefix=".models-", dir=root) as folder:
-        args.model_cache = Path(folder)
+    # trained once: in the folder given, else in one that lives as long as this run
+    with run_cache(args.model_cache, within=root) as folder:
+        args.model_cache = folder
         return _run_each(args, EXPERIMENTS, root)
 
 

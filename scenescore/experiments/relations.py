@@ -18,16 +18,15 @@ Time per problem is the wall time of solving (and checking) one problem, trainin
 from __future__ import annotations
 
 import json
-import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..learn import TrainConfig, train
+from ..learn.cache import run_cache
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
 from ..scene import SceneError
 from ..tasks import Sweep, Task, run_tasks
@@ -250,24 +249,13 @@ def run(
     ]
     res.per_seed = {m: [{} for _ in range(seeds)] for m in chosen}
     bar = "relations (seed, size)" if progress else None
-    with _model_cache(cache) as folder:
+    with run_cache(cache) as folder:  # every task of a seed needs its models: the first to ask trains them
         records = run_tasks(partial(one, cache=folder), tasks, jobs, log, bar, sweep)
     for task, (figures, seconds) in zip(tasks, records):
         for m in chosen:
             res.per_seed[m][task.seed].update(figures[m])  # the sizes in order: the tasks are size-major
             res.seconds[m] = res.seconds.get(m, 0.0) + seconds[m]
     return res
-
-
-@contextmanager
-def _model_cache(cache: Any) -> Iterator[Any]:
-    """``cache``, or a folder that lives as long as the run: every task of a seed needs its models, and
-    only the first to ask trains them."""
-    if cache is not None:
-        yield cache
-        return
-    with tempfile.TemporaryDirectory(prefix="scenescore-relation-models-") as folder:
-        yield folder
 
 
 def format_relations(res: RelationsResult) -> str:

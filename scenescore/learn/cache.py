@@ -13,7 +13,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +26,7 @@ from ..scene import Scene
 from ..tasks import code_version
 from .config import TrainConfig
 
-__all__ = ["cached_path", "digest"]
+__all__ = ["cached_path", "digest", "run_cache"]
 
 
 def digest(value: Any) -> str:
@@ -56,3 +58,14 @@ def cached_path(
         "code": code_version(),
     }
     return Path(folder) / f"{digest(what)}.ckpt"
+
+
+@contextmanager
+def run_cache(folder: str | os.PathLike | None, within: str | os.PathLike | None = None) -> Iterator[Path]:
+    """The model cache of one run: ``folder`` when given (kept), else a new folder (in ``within``, or
+    the system's temporary folder) that lives as long as the ``with`` block."""
+    if folder is not None:
+        yield Path(folder)
+        return
+    with tempfile.TemporaryDirectory(prefix=".models-", dir=within) as tmp:
+        yield Path(tmp)
