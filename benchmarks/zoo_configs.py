@@ -33,9 +33,9 @@ from pathlib import Path
 
 from scenescore.experiments.zoo import catastrophic, good, run
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
+from scenescore.outputs import atomic_write_text
 from scenescore.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
-from scenescore.scene import atomic_write_text
 
 
 def main() -> None:

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 
 from .evaluation import case_errors
-from .scene import Scene, atomic_write_bytes
+from .outputs import atomic_write_bytes
+from .scene import Scene
 
 __all__ = [
     "plot_scene",

@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .outputs import atomic_write_text
 from .provenance import version_of
-from .scene import atomic_write_text
 from .workers import map_in_workers
 
 __all__ = ["Task", "Codec", "RECORD", "Sweep", "Executor", "code_version", "describe", "run_tasks"]

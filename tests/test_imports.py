@@ -19,6 +19,8 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.workers", 0),  # worker processes that exit with the run that started them
     ("scenescore.provenance", 0),  # where a result came from: commit, date, versions, device, cores
     ("scenescore.tasks", 0),  # an experiment's tasks, their JSON records, sweeps that resume from them
+    ("scenescore.scene_fields", 0),  # a scene's JSON fields read and checked; SceneError
+    ("scenescore.outputs", 0),  # files written atomically; WriteError
     ("scenescore.scene", 0),
     ("scenescore.units", 0),  # the length unit a dataset names, and lengths said in it
     ("scenescore.geometry", 1),

@@ -219,7 +219,7 @@ FOLDER_OUTPUTS = {"demo", "experiment", "compare"}  # commands whose --out is a 
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Every output path the command was given can be written, checked before any work is done."""
-    from ..scene import check_output_path
+    from ..outputs import check_output_path
 
     for attr in ("out", "plot", "report", "scene_out", "images", "state"):
         value = getattr(args, attr, None)

@@ -15,7 +15,8 @@ from ..learn.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES
 from ..learn.training_state import SAVE_EVERY
 from ..memory import check, format_gb
 from ..models.ensemble import MAX_MEMBERS
-from ..scene import Scene, check_output_path, read_jsonl, write_jsonl
+from ..outputs import check_output_path
+from ..scene import Scene, read_jsonl, write_jsonl
 from . import ITERATIONS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
 

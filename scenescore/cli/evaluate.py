@@ -36,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from ..evaluation import evaluate
-    from ..scene import atomic_write_text, read_jsonl
+    from ..outputs import atomic_write_text
+    from ..scene import read_jsonl
 
     device = device_of(args)
     for f in (args.data, args.train_data):

@@ -351,7 +351,7 @@ def _run_each(args: argparse.Namespace, names: list[str], root: Path | None = No
             + "".join(f"\n\n![{f}]({name}/{f})" for f in figures)
         )
     if root is not None:
-        from ..scene import atomic_write_text
+        from ..outputs import atomic_write_text
 
         atomic_write_text(
             root / "report.md", "# SceneScore: the paper's experiments\n\n" + "\n\n".join(sections) + "\n"

@@ -206,9 +206,9 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
     from ..experiments import zoo
     from ..learn import TrainConfig
+    from ..outputs import atomic_write_text
     from ..plot import demo_figure
     from ..scenarios.zoo import ROOMS
-    from ..scene import atomic_write_text
 
     names = args.scenarios.split(",") if args.scenarios else None
     cfg = TrainConfig(iterations=150 if args.quick else 600, members=args.members or 1)
@@ -286,7 +286,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
     from ..experiments import tidy
     from ..learn import TrainConfig
-    from ..scene import atomic_write_text
+    from ..outputs import atomic_write_text
 
     names = tuple(args.scenarios.split(",")) if args.scenarios else tidy.SCENARIOS
     if args.quick and not args.scenarios:

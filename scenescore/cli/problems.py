@@ -75,7 +75,7 @@ def warn_unused_options(path: str, options: dict, chains: list[str]) -> None:
 
 
 def run_solve(args: argparse.Namespace) -> int:
-    from ..scene import atomic_write_text
+    from ..outputs import atomic_write_text
     from ..solvers import solve
 
     lp = _load(args.problem, args)
@@ -120,7 +120,7 @@ def _solver_list(text: str) -> list[str]:
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    from ..scene import atomic_write_text
+    from ..outputs import atomic_write_text
     from ..solvers.compare import compare
 
     if args.out is not None and args.out.suffix in (".md", ".json"):

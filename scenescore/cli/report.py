@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         render_page,
         replace_readme_table,
     )
-    from ..scene import atomic_write_text
+    from ..outputs import atomic_write_text
     from ..textfiles import read_text
 
     try:

@@ -31,7 +31,8 @@ from torch import Tensor
 
 from ..devices import resolve_device
 from ..geometry import Footprints
-from ..scene import MAX_LENGTH, Scene, SceneError
+from ..scene import Scene, SceneError
+from ..scene_fields import MAX_LENGTH
 
 __all__ = [
     "CostError",

@@ -11,7 +11,7 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from ..scene import MAX_LENGTH
+from ..scene_fields import MAX_LENGTH
 from .base import Coordinate, Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 

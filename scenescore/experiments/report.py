@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..scene import atomic_write_text
+from ..outputs import atomic_write_text
 
 __all__ = [
     "RESULTS_FORMAT",

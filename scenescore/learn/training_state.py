@@ -28,7 +28,8 @@ from torch import Tensor
 from ..encoders import Encoder
 from ..memory import check as check_memory
 from ..models import CheckpointError, ScoreModel
-from ..scene import Scene, atomic_write_bytes
+from ..outputs import atomic_write_bytes
+from ..scene import Scene
 from .cache import digest
 from .config import TrainConfig
 from .negatives import ChainBuffer

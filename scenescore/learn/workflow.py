@@ -21,8 +21,9 @@ import torch
 from ..encoders import Encoder
 from ..evaluation import EvalReport, evaluate
 from ..models import ScoreModel
+from ..outputs import atomic_write_text
 from ..plot import training_figure
-from ..scene import Scene, atomic_write_text, write_jsonl
+from ..scene import Scene, write_jsonl
 from ..tidying import calibrate, count_weight
 from .config import TrainConfig
 from .crossval import cross_validate, folds_for

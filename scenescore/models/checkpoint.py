@@ -19,7 +19,7 @@ from safetensors.torch import save as st_save
 from torch import Tensor
 
 from ..memory import check as check_memory
-from ..scene import atomic_write_bytes
+from ..outputs import atomic_write_bytes
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "CheckpointError", "Checkpoint", "read_checkpoint", "write_checkpoint"]
 

@@ -38,7 +38,8 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..scene import Scene, SceneError, atomic_write_bytes
+from ..outputs import atomic_write_bytes
+from ..scene import Scene, SceneError
 from .ensemble import members_of
 from .model import ScoreModel
 from .network import WALLS, EnergyNet

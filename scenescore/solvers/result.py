@@ -14,8 +14,9 @@ import torch
 from torch import Tensor
 
 from ..costs.guide import Alternatives, Verdict, guides, verdicts
+from ..outputs import atomic_write_text
 from ..problem import FEASIBILITY_TOL, Problem
-from ..scene import Scene, atomic_write_text
+from ..scene import Scene
 
 __all__ = ["Result", "Status", "make_result", "best_first"]
 

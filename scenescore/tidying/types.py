@@ -10,9 +10,10 @@ from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
 from ..errors import ConfigError, check_number
+from ..outputs import atomic_write_text
 from ..problem import ProblemError
 from ..sampling import PLACEMENT
-from ..scene import Scene, atomic_write_text
+from ..scene import Scene
 from ..solvers import Result
 from ..solvers.langevin import LangevinOptions
 

@@ -20,7 +20,8 @@ import cv2
 import numpy as np
 
 from ..memory import check as check_memory
-from ..scene import Bounds, Scene, SceneError, SceneObject, atomic_write_bytes, atomic_write_text
+from ..outputs import atomic_write_bytes, atomic_write_text
+from ..scene import Bounds, Scene, SceneError, SceneObject
 from .sprites import sprite_parts
 
 __all__ = [
