@@ -11,9 +11,9 @@ rows in metres; their penalty is ``sum(relu(-g) ** power)`` and their violation 
 A cost is one class: its torch evaluation (``evaluate``), its constraint rows (``constraints``), its
 exact feasibility check (``check``: :class:`~scenescore.problem.Problem` asks every term), and, in the
 cost's own module, its CasADi form (:func:`scenescore.costs.symbolic.register_casadi_form`) and its YAML
-spec (:func:`register_cost_type`). See ``docs/extending.md``. A term with an opinion on candidate poses
-beyond its value (it proposes some, doubts others: the learned energy) is also a
-:class:`~scenescore.costs.guide.Guide`.
+spec (:func:`scenescore.costs.spec.register_cost_type`). See ``docs/extending.md``. A term with an
+opinion on candidate poses beyond its value (it proposes some, doubts others: the learned energy) is also
+a :class:`~scenescore.costs.guide.Guide`.
 """
 
 from __future__ import annotations
@@ -22,17 +22,15 @@ import copy
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Protocol, cast
+from typing import cast
 
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict, Field
 from torch import Tensor
 
 from ..devices import resolve_device
 from ..geometry import Footprints
 from ..scene import Scene, SceneError
-from ..scene_fields import MAX_LENGTH
 
 __all__ = [
     "CostError",
@@ -45,11 +43,6 @@ __all__ = [
     "as_sum",
     "stack_sums",
     "check_scene_names",
-    "CostSpec",
-    "Coordinate",
-    "SpecContext",
-    "register_cost_type",
-    "cost_types",
 ]
 
 
@@ -467,66 +460,3 @@ def check_scene_names(scene: Scene, names: Sequence[str], what: str) -> list[int
         except SceneError:
             raise CostError(f"{what}: no object named {n!r}; objects are {scene.names}") from None
     return out
-
-
-# -- YAML specs ------------------------------------------------------------------------------------------
-
-
-class SpecContext(Protocol):
-    """What a cost's YAML spec may ask of the file it is read from (errors name the file, line and key)."""
-
-    def object(self, name: str, at: tuple[str | int, ...]) -> str:
-        """``name`` if the scene has such an object, else a :class:`ProblemError` naming ``at``."""
-        ...
-
-    def objects(self, names: list[str] | None, at: tuple[str | int, ...]) -> list[str] | None:
-        """Each of ``names`` checked as by :meth:`object` (``None`` stays ``None``)."""
-        ...
-
-    def model(self, at: tuple[str | int, ...]) -> Any:
-        """The problem file's trained model (its top-level ``model`` key), loaded once."""
-        ...
-
-    def checkpoint(self, path: str, at: tuple[str | int, ...]) -> Any:
-        """The model in the checkpoint at ``path`` (relative to the problem file), loaded once per file."""
-        ...
-
-
-#: a coordinate in metres in a YAML spec: finite and within the range scenes allow
-Coordinate = Annotated[float, Field(ge=-MAX_LENGTH, le=MAX_LENGTH)]
-
-
-class CostSpec(BaseModel):
-    """Base of a cost's YAML spec: ``type``, ``weight``, ``name`` and the cost's own keys (no others).
-
-    A subclass declares ``type: Literal["mytype"]`` and the cost's keys, and builds the cost in
-    :meth:`build`; :func:`register_cost_type` makes ``type: mytype`` valid in problem files.
-    """
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)  # no NaN or inf in any number
-    type: str
-    weight: float = Field(1.0, ge=0, allow_inf_nan=False)
-    name: str | None = None
-
-    def build(self, ctx: SpecContext) -> Cost:  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def named(self) -> dict[str, Any]:
-        """``{"name": ...}`` when the spec names the term, else ``{}`` (the cost's default name)."""
-        return {"name": self.name} if self.name else {}
-
-
-_COST_TYPES: dict[str, type[CostSpec]] = {}
-
-
-def register_cost_type(type_name: str, spec: type[CostSpec]) -> type[CostSpec]:
-    """Make ``type: <type_name>`` valid in YAML problem files, read with ``spec``."""
-    if not (isinstance(spec, type) and issubclass(spec, CostSpec)):
-        raise CostError(f"register_cost_type({type_name!r}): expected a CostSpec subclass, got {spec!r}")
-    _COST_TYPES[type_name] = spec
-    return spec
-
-
-def cost_types() -> dict[str, type[CostSpec]]:
-    """The registered YAML cost types: name -> spec class."""
-    return dict(_COST_TYPES)

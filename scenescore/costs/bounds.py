@@ -11,16 +11,8 @@ from torch import Tensor
 
 from ..exact import footprint_extent
 from ..geometry import support_extent
-from .base import (
-    ConstraintCost,
-    Cost,
-    CostError,
-    CostSpec,
-    SpecContext,
-    Violation,
-    check_scene_names,
-    register_cost_type,
-)
+from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
+from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["Bounds", "BoundsSpec"]

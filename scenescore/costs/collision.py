@@ -15,16 +15,8 @@ from torch import Tensor
 from ..exact import overlap_depth_exceeds, shapely_core
 from ..geometry import signed_distance_placed, signed_distance_reference
 from ..memory import chunk_rows, return_freed_memory
-from .base import (
-    ConstraintCost,
-    Cost,
-    CostError,
-    CostSpec,
-    SpecContext,
-    Violation,
-    check_scene_names,
-    register_cost_type,
-)
+from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
+from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["HingeCollision", "CollisionSpec"]

@@ -29,7 +29,8 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .base import Cost, CostError, check_scene_names
+from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
 
 __all__ = [

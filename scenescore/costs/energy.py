@@ -19,8 +19,9 @@ from ..models.rivals import rivals
 from ..models.trust import Assessment, assess, outside_data
 from ..scene import Scene
 from ..units import length_unit
-from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .base import Cost, CostError, check_scene_names
 from .guide import Alternatives, Guide
+from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
 
 __all__ = ["LearnedEnergy", "EnergySpec"]

@@ -10,17 +10,8 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from .base import (
-    ConstraintCost,
-    Coordinate,
-    Cost,
-    CostError,
-    CostSpec,
-    SpecContext,
-    Violation,
-    check_scene_names,
-    register_cost_type,
-)
+from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
+from .spec import Coordinate, CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["ReachLimit", "ReachSpec"]

@@ -27,7 +27,8 @@ from ..models import ScoreModel
 from ..models.batching import SceneTensors
 from ..models.model import with_walls
 from ..scene import Scene, SceneObject
-from .base import Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .base import Cost, CostError, check_scene_names
+from .spec import CostSpec, SpecContext, register_cost_type
 
 __all__ = ["Relation", "RelationSpec", "ROLE_COLOURS", "COMPASS", "as_roles", "compass", "reads_compass"]
 

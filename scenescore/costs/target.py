@@ -12,7 +12,8 @@ from pydantic import Field
 from torch import Tensor
 
 from ..scene_fields import MAX_LENGTH
-from .base import Coordinate, Cost, CostError, CostSpec, SpecContext, check_scene_names, register_cost_type
+from .base import Cost, CostError, check_scene_names
+from .spec import Coordinate, CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
 
 __all__ = ["PoseTarget", "TargetSpec"]
