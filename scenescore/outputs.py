@@ -1,9 +1,9 @@
 """Writing outputs atomically: a file appears whole at its path or not at all.
 
-Every file the library writes (checkpoints, datasets, results, reports, plots) goes through
-:func:`atomic_file`: written to a temporary file beside the target, flushed, then renamed over it, so an
-error, an interrupt or a full disk leaves the older file as it was. :func:`check_output_path` refuses,
-before any work, a path that cannot be written.
+Checkpoints, datasets, results, reports and plots are written through :func:`atomic_file`: to a
+temporary file beside the target, flushed, then renamed over it, so an error, an interrupt or a full
+disk leaves the older file as it was. :func:`check_output_path` refuses, before any
+work, a path that cannot be written.
 """
 
 from __future__ import annotations
