@@ -56,3 +56,21 @@ def assert_close_to_rounding(
     :func:`rounding_tolerance`)."""
     tol = rounding_tolerance(expected, terms, dtype)
     torch.testing.assert_close(actual, expected, rtol=0.0, atol=tol, check_dtype=False)
+
+
+@pytest.fixture
+def own_registries():
+    """What a test registers (YAML cost types, solvers, CasADi forms: a documentation snippet's
+    ``keep_left``) is unregistered when it ends, so that no other test, in this process or in the order
+    another worker runs them, sees it."""
+    from scenescore.costs import spec, symbolic
+    from scenescore.solvers import registry
+
+    tables = [spec._COST_TYPES, registry._REGISTRY, symbolic._FORMS]
+    saved = [dict(t) for t in tables]
+    try:
+        yield
+    finally:
+        for table, before in zip(tables, saved):
+            table.clear()
+            table.update(before)

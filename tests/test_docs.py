@@ -1,4 +1,5 @@
-"""The Python snippets of docs/extending.md run as written."""
+"""The Python snippets of docs/extending.md run as written: compiled as a file of their own (not under this
+module's ``from __future__`` imports), their registrations undone when the test ends."""
 
 from __future__ import annotations
 
@@ -15,20 +16,20 @@ def _python_blocks(path: Path) -> list[str]:
 
 
 @pytest.mark.parametrize("doc", ["extending.md"])
-def test_python_snippets_run(doc, capsys):
+def test_python_snippets_run(doc, capsys, own_registries):
     blocks = _python_blocks(DOCS / doc)
     assert blocks, f"{doc} has no python block"
     for code in blocks:
-        exec(compile(code, f"{doc}:snippet", "exec"), {"__name__": "snippet"})
+        exec(compile(code, f"{doc}:snippet", "exec", dont_inherit=True), {"__name__": "snippet"})
     assert "solver langevin>casadi" in capsys.readouterr().out
 
 
-def test_costs_snippets_run(capsys):
+def test_costs_snippets_run(capsys, own_registries):
     """docs/costs.md's learned relation: trained briefly, it prefers the arrangement its checker accepts."""
     blocks = _python_blocks(DOCS / "costs.md")
     assert blocks, "costs.md has no python block"
     for code in blocks:
-        exec(compile(code, "costs.md:snippet", "exec"), {"__name__": "snippet"})
+        exec(compile(code, "costs.md:snippet", "exec", dont_inherit=True), {"__name__": "snippet"})
     out = capsys.readouterr().out
     assert out.startswith("True tensor(")
 

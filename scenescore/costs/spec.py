@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Protocol
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, PydanticUndefinedAnnotation
 
 from ..scene_fields import MAX_LENGTH
 from .base import Cost, CostError
@@ -68,6 +68,14 @@ def register_cost_type(type_name: str, spec: type[CostSpec]) -> type[CostSpec]:
     """Make ``type: <type_name>`` valid in YAML problem files, read with ``spec``."""
     if not (isinstance(spec, type) and issubclass(spec, CostSpec)):
         raise CostError(f"register_cost_type({type_name!r}): expected a CostSpec subclass, got {spec!r}")
+    if not spec.__pydantic_complete__:  # a field's type (a string annotation) not yet resolved
+        try:  # resolved now with the caller's names, so that reading a YAML file cannot fail on it later
+            spec.model_rebuild(raise_errors=True, _parent_namespace_depth=3)
+        except PydanticUndefinedAnnotation as e:
+            raise CostError(
+                f"register_cost_type({type_name!r}): a field of {spec.__name__} names {e.name!r}, which is "
+                f"not defined where {spec.__name__} is; import it there"
+            ) from None
     _COST_TYPES[type_name] = spec
     return spec
 

@@ -118,6 +118,33 @@ solver: casadi
         load_problem(tmp_path / "p.yaml", text=text.replace("gap: 0.2", "gapp: 0.2"))
 
 
+_SPEC_FILE = """
+from __future__ import annotations
+from scenescore.costs import CostSpec, register_cost_type
+
+class NearWallSpec(CostSpec):
+    type: Literal["near_wall"]
+    object: str
+
+register_cost_type("near_wall", NearWallSpec)
+"""
+
+
+def test_a_spec_is_complete_when_registered_or_the_error_names_the_missing_type(own_registries):
+    """A spec written with postponed annotations in a namespace pydantic cannot import (a
+    snippet run by exec) is resolved at registration with the caller's names, so that reading a YAML file
+    never meets a half-defined spec; a name defined nowhere is a CostError at registration."""
+    code = compile(_SPEC_FILE, "cell", "exec", dont_inherit=True)
+    exec(code, {"__name__": "cell", "Literal": Literal})
+    spec = ss.costs.cost_types()["near_wall"]
+    assert spec.model_validate({"type": "near_wall", "object": "cup"}).object == "cup"
+    with pytest.raises(
+        ss.costs.CostError,
+        match=r"register_cost_type\('near_wall'\): a field of NearWallSpec names 'Literal', which is not defined",
+    ):
+        exec(code, {"__name__": "cell"})
+
+
 def test_target_without_heading_leaves_the_heading_free():
     """Bug 3: ``PoseTarget(theta=None)`` pulled the heading towards 0, in torch and in CasADi alike."""
     scene = _scene()
