@@ -35,7 +35,8 @@ def test_the_two_install_commands_come_first_and_match_ci():
     ci = (ROOT / ".ci" / "run").read_text()
     for step in ("pip install torch==2.13.0", '-e ".[test]"', "install_clip.sh", "install_minilm.sh"):
         assert step.split()[-1] in install[1] and step.split()[-1] in ci, step
-    assert install[1].strip().endswith("-m pytest -q tests") and "-m pytest -q tests" in ci
+    test = "-m pytest -q -n auto --dist loadfile tests"  # one worker per core, each test file on one
+    assert install[1].strip().endswith(test) and test in ci
 
 
 def test_table_commands_parse():
@@ -67,7 +68,7 @@ def test_json_and_yaml_examples_load(tmp_path):
     assert loaded.problem.movable == ["bowl_0"]
 
 
-def test_session_and_python_snippets_run(tmp_path, capsys):
+def test_session_and_python_snippets_run(tmp_path, capsys, own_registries):
     """The shell session, then each Python snippet, in a folder holding a copy of the examples."""
     shutil.copytree(ROOT / "examples", tmp_path / "examples", ignore=shutil.ignore_patterns("*.ckpt"))
     bindir = str(Path(sys.executable).parent)
@@ -97,7 +98,7 @@ def test_session_and_python_snippets_run(tmp_path, capsys):
     os.chdir(tmp_path)
     try:
         for k, code in enumerate(_blocks("python")):
-            exec(compile(code, f"README.md:python-{k}", "exec"), {"__name__": "readme"})
+            exec(compile(code, f"README.md:python-{k}", "exec", dont_inherit=True), {"__name__": "readme"})
     finally:
         os.chdir(cwd)
     out = capsys.readouterr().out
