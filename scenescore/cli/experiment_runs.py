@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from . import UserError
 
@@ -54,6 +54,12 @@ def _methods(args: argparse.Namespace) -> list[str] | None:
     return args.methods.split(",") if args.methods else None
 
 
+def _shared(args: argparse.Namespace, out: Path) -> dict[str, Any]:
+    """The options every experiment's ``run`` takes alike: device, worker processes, model cache and the
+    task records under ``out`` (:func:`_sweep`)."""
+    return {"device": args.device, "jobs": args.jobs, "cache": args.model_cache, "sweep": _sweep(args, out)}
+
+
 def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from ..experiments import missing
     from ..experiments.report import over_seeds
@@ -75,10 +81,7 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         progress=not args.quiet,
         scenes_fn=scenes_fn,
         encoder=encoder,
-        device=args.device,
-        jobs=args.jobs,
-        cache=args.model_cache,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     md = (
         "## Table 1: missing objects"
@@ -133,10 +136,7 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         progress=not args.quiet,
         encoders=encoders,
         scenes_fn=scenes_fn,
-        device=args.device,
-        jobs=args.jobs,
-        cache=args.model_cache,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     md = (
         "## Table 2: novel objects (ordered rows of cutlery)"
@@ -165,10 +165,7 @@ def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         quick=args.quick,
         progress=not args.quiet,
         out=out,
-        device=args.device,
-        cache=args.model_cache,
-        jobs=args.jobs,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     md = heatmap.format_heatmap(res)
     return md, res.rows()
@@ -182,11 +179,8 @@ def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         methods=_methods(args),
         quick=args.quick,
         progress=not args.quiet,
-        device=args.device,
-        jobs=args.jobs,
         refine_options=None if args.alm is None else _alm_options(args.alm),
-        cache=args.model_cache,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
@@ -217,12 +211,9 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         scenarios=names,
         progress=not args.quiet,
         config=cfg,
-        jobs=args.jobs,
         energy_only=args.energy_only,
-        device=args.device,
-        cache=args.model_cache,
         train_scenes=args.train_scenes,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case, indent=1) + "\n")
@@ -303,10 +294,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         seeds=range(args.seed, args.seed + args.seeds),
         config=cfg,
         log=log,
-        device=args.device,
-        jobs=args.jobs,
-        cache=args.model_cache,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case(), indent=1) + "\n")
@@ -361,10 +349,7 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         restarts=relation_models.RESTARTS if args.restarts is None else args.restarts,
         config=relations.train_config(args.iterations, args.quick),
         progress=not args.quiet,
-        device=args.device,
-        jobs=args.jobs,
-        cache=args.model_cache,
-        sweep=_sweep(args, out),
+        **_shared(args, out),
     )
     out.mkdir(parents=True, exist_ok=True)
     relations.plot_relations(res, out / "solved.png")
