@@ -9,10 +9,12 @@ one scene's ``N`` objects given the scene's node embeddings, computed once per s
   sees, in the order of ``nodes``; for a model with walls (metadata ``walls`` is ``"true"``) the scene's
   own objects followed by the bounds' four sides, whose poses are :attr:`OnnxScene.extra_poses`;
 * ``nodes (N, D)`` float32: the node embeddings, :func:`node_embeddings`, or ``embedding.onnx`` run on the
-  encoder's features;
+  encoder's features (metadata ``embed_dim`` is ``D``; an ensemble's members' side by side, metadata
+  ``members`` saying how many);
 * ``round (N,)`` bool: the round objects, whose headings the energy ignores; only a graph whose metadata
   has ``round_invariant`` ``"true"`` (every model trained since it exists) takes it;
-* output ``energy (B,)`` float32, low for arrangements like the training examples.
+* output ``energy (B,)`` float32, low for arrangements like the training examples (an ensemble's: its
+  members' mean).
 
 ``B`` and ``N`` are dynamic. ``embedding.onnx`` (from :func:`export_embedding_onnx`) maps ``feats (N, F)``
 (the encoder's vectors, :func:`scenescore.encoders.encode_scene`; walls are objects of category ``"wall"``)
@@ -32,7 +34,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -74,45 +76,59 @@ def require(module: str) -> Any:
         raise SceneError(f"{EXPORT_EXTRA} ({e})") from None
 
 
-class _Energy(nn.Module):
+def _member_energy(net: EnergyNet, poses: Tensor, nodes: Tensor, round: Tensor | None) -> Tensor:
     """:meth:`EnergyNet.forward` for one scene's precomputed nodes, without padding: every object is real,
     and a round-invariant network always takes the round path (the same numbers when none is round)."""
+    cfg = net.cfg
+    b, n = poses.shape[0], poses.shape[1]
+    v = nodes.unsqueeze(0).expand(b, n, nodes.shape[-1])
+    eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
+    pair = (1 - eye).unsqueeze(0).expand(b, n, n)  # no self-edges
+    rnd = round.unsqueeze(0).expand(b, n) if cfg.round_invariant and round is not None else None
+    if cfg.absolute:
+        th = poses[..., 2:3]
+        heading = torch.cat([torch.cos(th), torch.sin(th)], dim=-1)
+        if rnd is not None:
+            heading = heading * (~rnd).unsqueeze(-1).to(heading.dtype)
+        v = torch.cat([v, poses[..., :2] / cfg.length_scale, heading], dim=-1)
+        e = None
+    else:
+        walls = None
+        if net.reads_walls:  # the walls are the last nodes (see OnnxScene)
+            walls = (torch.arange(n, device=poses.device) >= n - WALLS).unsqueeze(0).expand(b, n)
+        e = net.edges(poses, rnd, walls)
+    for layer in net.layers:
+        v = layer(v, e, pair)
+    return net.head(v.sum(dim=1)).squeeze(-1)
 
-    def __init__(self, net: EnergyNet):
+
+class _Energy(nn.Module):
+    """The members' mean energy (one member: its energy), each member reading its own slice of the
+    nodes, as :meth:`EnsembleNet.forward` does."""
+
+    def __init__(self, nets: list[EnergyNet]):
         super().__init__()
-        self.net = net
+        self.members = nn.ModuleList(nets)
 
     def forward(self, poses: Tensor, nodes: Tensor, round: Tensor | None = None) -> Tensor:
-        cfg = self.net.cfg
-        b, n = poses.shape[0], poses.shape[1]
-        v = nodes.unsqueeze(0).expand(b, n, nodes.shape[-1])
-        eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
-        pair = (1 - eye).unsqueeze(0).expand(b, n, n)  # no self-edges
-        rnd = round.unsqueeze(0).expand(b, n) if cfg.round_invariant and round is not None else None
-        if cfg.absolute:
-            th = poses[..., 2:3]
-            heading = torch.cat([torch.cos(th), torch.sin(th)], dim=-1)
-            if rnd is not None:
-                heading = heading * (~rnd).unsqueeze(-1).to(heading.dtype)
-            v = torch.cat([v, poses[..., :2] / cfg.length_scale, heading], dim=-1)
-            e = None
-        else:
-            walls = None
-            if self.net.reads_walls:  # the walls are the last nodes (see OnnxScene)
-                walls = (torch.arange(n, device=poses.device) >= n - WALLS).unsqueeze(0).expand(b, n)
-            e = self.net.edges(poses, rnd, walls)
-        for layer in self.net.layers:
-            v = layer(v, e, pair)
-        return self.net.head(v.sum(dim=1)).squeeze(-1)
+        nets = cast(list[EnergyNet], list(self.members))
+        if len(nets) == 1:
+            return _member_energy(nets[0], poses, nodes, round)
+        parts = nodes.chunk(len(nets), dim=-1)
+        energies = [_member_energy(m, poses, x, round) for m, x in zip(nets, parts, strict=True)]
+        return torch.stack(energies).mean(dim=0)
 
 
 class _Embedding(nn.Module):
-    def __init__(self, net: EnergyNet):
+    """The members' node embeddings side by side, as :meth:`EnsembleNet.node_embedding` gives them."""
+
+    def __init__(self, nets: list[EnergyNet]):
         super().__init__()
-        self.net = net
+        self.members = nn.ModuleList(nets)
 
     def forward(self, feats: Tensor, sizes: Tensor) -> Tensor:
-        return self.net.node_embedding(feats, sizes)
+        nets = cast(list[EnergyNet], list(self.members))
+        return torch.cat([m.node_embedding(feats, sizes) for m in nets], dim=-1)
 
 
 @dataclass
@@ -173,11 +189,17 @@ def onnx_metadata(model: ScoreModel, inputs: tuple[str, ...], outputs: tuple[str
         "outputs": json.dumps(list(outputs)),
         "walls": str(bool(cfg.walls)).lower(),
         "round_invariant": str(bool(cfg.round_invariant)).lower(),
-        "embed_dim": str(cfg.embed_dim + 2),
+        "embed_dim": str(_node_dim(model)),
+        "members": str(model.members),
         "feat_dim": str(cfg.feat_dim),
         "encoder": json.dumps({"name": model.encoder.name, "config": model.encoder.config()}),
         "energy_config": json.dumps(cfg.to_dict()),
     }
+
+
+def _node_dim(model: ScoreModel) -> int:
+    """The width ``D`` of the ``nodes`` input: each member's embedding and footprint, side by side."""
+    return model.members * (model.config.embed_dim + 2)
 
 
 @contextmanager
@@ -243,17 +265,9 @@ def _write(proto: Any, path: str | os.PathLike, meta: dict[str, str]) -> Path:
     return path
 
 
-def _single(model: ScoreModel) -> None:
-    if model.members > 1:
-        raise SceneError(
-            f"export: this model is an ensemble of {model.members} networks, which the ONNX graph does not "
-            "carry yet; export a model trained with members: 1"
-        )
-
-
-def _float_net(model: ScoreModel) -> EnergyNet:
-    (net,) = members_of(model.net)  # its callers refused an ensemble (_single)
-    return copy.deepcopy(net).to("cpu", torch.float32).eval()  # exported from the CPU
+def _float_nets(model: ScoreModel) -> list[EnergyNet]:
+    """The model's networks (an ensemble's members) as float32 copies on the CPU, which exports them."""
+    return [copy.deepcopy(net).to("cpu", torch.float32).eval() for net in members_of(model.net)]
 
 
 def export_onnx(
@@ -262,20 +276,19 @@ def export_onnx(
     """Write ``model``'s energy as ONNX to ``path`` atomically (see the module's docstring for the inputs);
     ``dynamo``: None takes the TorchScript exporter where this torch still has it (fast, with
     ``dynamic_axes``) and ``torch.export`` otherwise; True or False forces one."""
-    _single(model)
     require("onnx")
     if model.config.local:
         raise SceneError(
             "export: this model reads a local graph (each object's nearest neighbours, for rooms), which "
             "the ONNX graph does not carry yet; export a model trained with graph: dense"
         )
-    net = _float_net(model)
+    nets = _float_nets(model)
     inputs = energy_inputs(model)
     n = 3
-    args = (torch.zeros(2, n, 3), torch.zeros(n, net.cfg.embed_dim + 2), torch.zeros(n, dtype=torch.bool))
+    args = (torch.zeros(2, n, 3), torch.zeros(n, _node_dim(model)), torch.zeros(n, dtype=torch.bool))
     axes = {"poses": {0: "batch", 1: "objects"}, "nodes": {0: "objects"}, "round": {0: "objects"}}
     axes = {**{k: v for k, v in axes.items() if k in inputs}, "energy": {0: "batch"}}
-    proto = _to_proto(_Energy(net), args[: len(inputs)], inputs, ("energy",), axes, opset, dynamo)
+    proto = _to_proto(_Energy(nets), args[: len(inputs)], inputs, ("energy",), axes, opset, dynamo)
     return _write(proto, path, onnx_metadata(model, inputs, ("energy",)))
 
 
@@ -284,10 +297,8 @@ def export_embedding_onnx(
 ) -> Path:
     """Write the node-embedding step as ONNX to ``path`` atomically: ``feats (N, F)``, ``sizes (N, 2)``
     -> ``nodes (N, D)``, the ``nodes`` input of :func:`export_onnx`'s graph."""
-    _single(model)
     require("onnx")
-    net = _float_net(model)
-    args = (torch.zeros(3, net.cfg.feat_dim), torch.zeros(3, 2))
+    args = (torch.zeros(3, model.config.feat_dim), torch.zeros(3, 2))
     axes = {"feats": {0: "objects"}, "sizes": {0: "objects"}, "nodes": {0: "objects"}}
-    proto = _to_proto(_Embedding(net), args, EMBEDDING_INPUTS, ("nodes",), axes, opset, dynamo)
+    proto = _to_proto(_Embedding(_float_nets(model)), args, EMBEDDING_INPUTS, ("nodes",), axes, opset, dynamo)
     return _write(proto, path, onnx_metadata(model, EMBEDDING_INPUTS, ("nodes",)))

@@ -18,10 +18,8 @@ from scenescore.cli import main
 from scenescore.learn import NetworkConfig, TrainConfig, train
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
-from scenescore.models.export import export_onnx
 from scenescore.models.trust import assess, member_shares
 from scenescore.placement import PLACE
-from scenescore.scene import SceneError
 
 CFG = TrainConfig(iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
 SEED = 3
@@ -100,11 +98,6 @@ def test_inspect_names_the_members(tmp_path, ensemble, capsys):
     capsys.readouterr()
     assert main(["inspect", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["members"] == 2
-
-
-def test_export_refuses_an_ensemble(tmp_path, ensemble):
-    with pytest.raises(SceneError, match="ensemble of 2 networks"):
-        export_onnx(ensemble, tmp_path / "e.onnx")
 
 
 def test_placement_runs_and_a_doubting_member_flags(scenes, ensemble):

@@ -15,6 +15,7 @@ from scenescore.cli import main  # noqa: E402
 from scenescore.encoders import FootprintEncoder  # noqa: E402
 from scenescore.learn import NetworkConfig, TrainConfig, train  # noqa: E402
 from scenescore.models import ScoreModel  # noqa: E402
+from scenescore.models.ensemble import EnsembleNet  # noqa: E402
 from scenescore.models.export import (  # noqa: E402
     energy_inputs,
     export_embedding_onnx,
@@ -22,6 +23,7 @@ from scenescore.models.export import (  # noqa: E402
     node_embeddings,
     scene_inputs,
 )
+from scenescore.models.network import EnergyNet  # noqa: E402
 from scenescore.scenarios import get  # noqa: E402
 
 TOL = 1e-4
@@ -115,6 +117,21 @@ def test_other_architectures(config, tmp_path):
     path = export_onnx(model, tmp_path / "e.onnx")
     assert [i.name for i in onnx.load(str(path)).graph.input] == list(energy_inputs(model))
     assert _max_diff(model, path, _test_scenes()) < TOL
+
+
+def test_an_ensemble_exports_its_members_mean(trained, tmp_path):
+    model, _ = trained
+    torch.manual_seed(1)
+    ensemble = ScoreModel(EnsembleNet([model.net, EnergyNet(model.config)]), model.encoder).eval()
+    path = export_onnx(ensemble, tmp_path / "energy.onnx")
+    embed = export_embedding_onnx(ensemble, tmp_path / "embedding.onnx")
+    meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
+    assert meta["members"] == "2" and int(meta["embed_dim"]) == 2 * (model.config.embed_dim + 2)
+    scenes = _test_scenes()
+    assert _max_diff(ensemble, path, scenes, embed) < TOL
+    poses = torch.from_numpy(_poses(scenes[0], 4, np.random.default_rng(1)))
+    with torch.no_grad():
+        assert (ensemble.energy_fn(scenes[0])(poses) - model.energy_fn(scenes[0])(poses)).abs().max() > 1e-3
 
 
 def test_cli_export_and_check(trained, tmp_path, capsys):
