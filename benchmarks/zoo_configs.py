@@ -19,7 +19,8 @@ small-data variant.
 ``--place`` changes placement's options for every config (a JSON object of ``LangevinOptions`` fields
 over ``scenescore.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
 case's record as ``DIR/config-K.json``; ``--records DIR/config-K.json`` prints that pooled trust line
-from such a file again, without running anything.
+from such a file again, without running anything, as ``--records OUT/cases.json`` does for a ``scenescore
+experiment zoo --out OUT`` run.
 """
 
 from __future__ import annotations
@@ -59,10 +60,16 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="keep each config's per-case records here")
     ap.add_argument("--cache", type=Path, default=None, help="a model cache folder shared by the configs")
     ap.add_argument("--train-scenes", type=int, default=None, help="train on the first N training scenes")
-    ap.add_argument("--records", type=Path, default=None, help="print the pooled trust line of an --out file")
+    ap.add_argument(
+        "--records",
+        type=Path,
+        default=None,
+        help="print the pooled trust line of an --out file (or of experiment zoo's cases.json)",
+    )
     args = ap.parse_args()
     if args.records is not None:
-        print(trust_line(json.loads(args.records.read_text(encoding="utf-8"))["cases"]))
+        records = json.loads(args.records.read_text(encoding="utf-8"))
+        print(trust_line(records["cases"] if "config" in records else records))  # else experiment zoo's
         return
     configs = json.loads(args.configs)
     scenarios = [s for s in args.scenarios.split(",") if s]
