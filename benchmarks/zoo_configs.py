@@ -19,8 +19,9 @@ small-data variant.
 ``--place`` changes placement's options for every config (a JSON object of ``LangevinOptions`` fields
 over ``scenescore.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
 case's record as ``DIR/config-K.json``; ``--records DIR/config-K.json`` prints that pooled trust line
-from such a file again, without running anything, as ``--records OUT/cases.json`` does for a ``scenescore
-experiment zoo --out OUT`` run.
+from such a file again, without running anything, and how many catastrophic and good placements each
+kind of flag fired on; ``--records OUT/cases.json`` does the same for a ``scenescore experiment zoo --out
+OUT`` run.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
@@ -69,7 +71,9 @@ def main() -> None:
     args = ap.parse_args()
     if args.records is not None:
         records = json.loads(args.records.read_text(encoding="utf-8"))
-        print(trust_line(records["cases"] if "config" in records else records))  # else experiment zoo's
+        per_case = records["cases"] if "config" in records else records  # else experiment zoo's
+        print(trust_line(per_case))
+        print(flag_kinds(per_case))
         return
     configs = json.loads(args.configs)
     scenarios = [s for s in args.scenarios.split(",") if s]
@@ -138,6 +142,21 @@ def trust_line(per_case: dict[str, list[dict]]) -> str:
     return (
         f"flagged: {flagged} of {bad} catastrophic ({rival} by rival), "
         f"{good_flagged} of {n_good} good ({100 * share:.1f}%)"
+    )
+
+
+def flag_kinds(per_case: dict[str, list[dict]]) -> str:
+    """How many catastrophic and how many good placements each kind of flag (``energy``, ``members``,
+    ``rival``, ...) is among the flags of, pooled over the scenarios."""
+    on: dict[str, Counter[str]] = {"catastrophic": Counter(), "good": Counter()}
+    for cases in per_case.values():
+        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
+            kinds = {f.split(":")[0] for f in c["flags"]}
+            on["catastrophic"].update(kinds if b else ())
+            on["good"].update(kinds if g else ())
+    return "; ".join(
+        f"flags on {k} placements: " + (", ".join(f"{f} {n}" for f, n in sorted(v.items())) or "none")
+        for k, v in on.items()
     )
 
 
