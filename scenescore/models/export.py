@@ -42,7 +42,7 @@ from torch import Tensor, nn
 
 from ..outputs import atomic_write_bytes
 from ..scene import Scene, SceneError
-from .ensemble import members_of
+from .ensemble import EnsembleNet, members_of
 from .model import ScoreModel
 from .network import WALLS, EnergyNet
 
@@ -120,15 +120,14 @@ class _Energy(nn.Module):
 
 
 class _Embedding(nn.Module):
-    """The members' node embeddings side by side, as :meth:`EnsembleNet.node_embedding` gives them."""
+    """The network's node embeddings (an ensemble's: its members' side by side)."""
 
-    def __init__(self, nets: list[EnergyNet]):
+    def __init__(self, net: EnergyNet | EnsembleNet):
         super().__init__()
-        self.members = nn.ModuleList(nets)
+        self.net = net
 
     def forward(self, feats: Tensor, sizes: Tensor) -> Tensor:
-        nets = cast(list[EnergyNet], list(self.members))
-        return torch.cat([m.node_embedding(feats, sizes) for m in nets], dim=-1)
+        return self.net.node_embedding(feats, sizes)
 
 
 @dataclass
@@ -265,9 +264,9 @@ def _write(proto: Any, path: str | os.PathLike, meta: dict[str, str]) -> Path:
     return path
 
 
-def _float_nets(model: ScoreModel) -> list[EnergyNet]:
-    """The model's networks (an ensemble's members) as float32 copies on the CPU, which exports them."""
-    return [copy.deepcopy(net).to("cpu", torch.float32).eval() for net in members_of(model.net)]
+def _float_net(model: ScoreModel) -> EnergyNet | EnsembleNet:
+    """The model's network (or ensemble) as a float32 copy on the CPU, which exports it."""
+    return copy.deepcopy(model.net).to("cpu", torch.float32).eval()
 
 
 def export_onnx(
@@ -282,13 +281,13 @@ def export_onnx(
             "export: this model reads a local graph (each object's nearest neighbours, for rooms), which "
             "the ONNX graph does not carry yet; export a model trained with graph: dense"
         )
-    nets = _float_nets(model)
+    net = _float_net(model)
     inputs = energy_inputs(model)
     n = 3
     args = (torch.zeros(2, n, 3), torch.zeros(n, _node_dim(model)), torch.zeros(n, dtype=torch.bool))
     axes = {"poses": {0: "batch", 1: "objects"}, "nodes": {0: "objects"}, "round": {0: "objects"}}
     axes = {**{k: v for k, v in axes.items() if k in inputs}, "energy": {0: "batch"}}
-    proto = _to_proto(_Energy(nets), args[: len(inputs)], inputs, ("energy",), axes, opset, dynamo)
+    proto = _to_proto(_Energy(members_of(net)), args[: len(inputs)], inputs, ("energy",), axes, opset, dynamo)
     return _write(proto, path, onnx_metadata(model, inputs, ("energy",)))
 
 
@@ -300,5 +299,5 @@ def export_embedding_onnx(
     require("onnx")
     args = (torch.zeros(3, model.config.feat_dim), torch.zeros(3, 2))
     axes = {"feats": {0: "objects"}, "sizes": {0: "objects"}, "nodes": {0: "objects"}}
-    proto = _to_proto(_Embedding(_float_nets(model)), args, EMBEDDING_INPUTS, ("nodes",), axes, opset, dynamo)
+    proto = _to_proto(_Embedding(_float_net(model)), args, EMBEDDING_INPUTS, ("nodes",), axes, opset, dynamo)
     return _write(proto, path, onnx_metadata(model, EMBEDDING_INPUTS, ("nodes",)))
