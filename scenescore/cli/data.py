@@ -17,7 +17,7 @@ from ..memory import check, format_gb
 from ..models.ensemble import MAX_MEMBERS
 from ..outputs import check_output_path
 from ..scene import Scene, read_jsonl, write_jsonl
-from . import ITERATIONS, SCENES, UserError, add_common, add_device, device_of, number
+from . import ITERATIONS, JOBS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
 
 PPM = number(0, open_lo=True)  # pixels per metre
@@ -111,6 +111,14 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         help="no edge encoder: the message layers read the raw relative poses, with feature noise 0.3, "
         "no size noise and no re-anchored counter-examples (better on Table 2's ordered rows, worse on "
         "larger rooms)",
+    )
+    p.add_argument(
+        "--jobs",
+        type=JOBS,
+        default=None,
+        help="worker processes, one thread each, that an ensemble's members and cross-validation's folds "
+        "train in side by side (default: one per usable core, at most one per member or fold; the model "
+        "does not depend on it)",
     )
     _add_train_inputs(p)
     _add_train_outputs(p)
@@ -379,6 +387,7 @@ def run_train(args: argparse.Namespace) -> int:
             state=args.state or args.out.with_name(args.out.name + ".state"),
             resume=args.resume,
             save_every=args.save_every,
+            jobs=args.jobs,
         )
     except NothingLearned as e:
         raise UserError(

@@ -6,7 +6,8 @@
 - ``negatives.py``: the counter-examples (persistent Langevin chains, perturbed, re-anchored);
 - ``losses.py``: InfoNCE and the regularisers, the held-out loss;
 - ``size_groups.py``: a batch's energies in groups of similar object counts;
-- ``loop.py``: :func:`train`, the training alone; ``cache.py``: the model cache it may use;
+- ``loop.py``: :func:`train`, the training alone; ``members.py``: an ensemble's members, trained one
+  after another or side by side in worker processes; ``cache.py``: the model cache it may use;
   ``training_state.py``: the state it writes every so often, that a killed run resumes from;
 - ``logs.py``: TensorBoard logs;
 - ``workflow.py``: :func:`~scenescore.learn.workflow.train_model` (``ss.train``), what

@@ -11,15 +11,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from functools import partial
 
 import numpy as np
 import torch
 
+from ..devices import resolve_device
 from ..encoders import Encoder
 from ..evaluation import CategoryErrors, EvalReport, evaluate
 from ..scene import Scene, SceneError
+from ..workers import map_in_workers
 from .config import TrainConfig
 from .loop import train
+from .members import training_jobs
 
 __all__ = ["CROSS_VALIDATE_BELOW", "FOLDS", "fold_splits", "cross_validate", "pooled", "folds_for"]
 
@@ -77,20 +81,36 @@ def cross_validate(
     device: str | torch.device | None = None,
     progress: bool = True,
     say: Callable[[str], None] = print,
+    jobs: int | None = 1,
 ) -> EvalReport:
     """Train one model per fold on the other folds' scenes (with ``cfg`` and ``seed``, as the final model
     trains) and place the fold's objects back with it, beside nearest neighbour on the same training
-    scenes; the pooled report of every fold."""
-    reports = []
-    for f, (train_s, held) in enumerate(fold_splits(scenes, folds, seed)):
-        say(
-            f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}"
-        )
-        model = train(
-            train_s, cfg, encoder=encoder, seed=seed, progress=progress, validation=held, device=device
-        )
-        reports.append(evaluate(model, held, train_s, seed=seed, progress=progress))
+    scenes; the pooled report of every fold. ``jobs``: worker processes the folds run in, side by side
+    (the report the same whatever their number; None: one per usable core)."""
+    splits = fold_splits(scenes, folds, seed)
+    n = training_jobs(jobs, folds, resolve_device(device))
+    fold = partial(_fold, cfg, encoder, seed, device, progress and n == 1, folds)
+    reports = map_in_workers(
+        fold, list(enumerate(splits)), jobs=n, log=say, bar="folds" if progress else None
+    )
     return pooled(reports)
+
+
+def _fold(
+    cfg: TrainConfig,
+    encoder: Encoder | None,
+    seed: int,
+    device: str | torch.device | None,
+    progress: bool,
+    folds: int,
+    task: tuple[int, tuple[list[Scene], list[Scene]]],
+    log: Callable[[str], None],
+) -> EvalReport:
+    """Fold ``task = (f, (train, held))``: its model trained on ``train``, ``held``'s objects placed back."""
+    f, (train_s, held) = task
+    log(f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}")
+    model = train(train_s, cfg, encoder=encoder, seed=seed, progress=progress, validation=held, device=device)
+    return evaluate(model, held, train_s, seed=seed, progress=progress)
 
 
 def _weighted(values: Sequence[tuple[float | None, int]]) -> float | None:

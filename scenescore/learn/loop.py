@@ -25,7 +25,6 @@ from ..devices import draw, generator, resolve_device
 from ..encoders import Encoder
 from ..errors import ConfigError, check_number
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
-from ..models.ensemble import EnsembleNet, member_seed, members_of
 from ..models.trust import reference
 from ..scene import Scene
 from ..threads import torch_threads
@@ -34,11 +33,12 @@ from .config import Derived, TrainConfig, derive
 from .data import check_training_data
 from .logs import summary_writer
 from .losses import ABSENT, training_loss
+from .members import Run, train_members
 from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
 from .size_groups import SizeGroups
 from .training_state import SAVE_EVERY, Progress, Trainer, read_state, state_key, write_state
 
-__all__ = ["train", "fit", "moving_average", "member_state"]
+__all__ = ["train", "fit", "moving_average"]
 
 
 def train(
@@ -55,6 +55,7 @@ def train(
     resume: bool = False,
     save_every: int = SAVE_EVERY,
     keep_state: bool = False,
+    jobs: int | None = 1,
 ) -> ScoreModel:
     """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
 
@@ -76,6 +77,10 @@ def train(
     removed once training ends, unless ``keep_state`` (its last state holds the finished training, so
     resuming from it trains no more; :func:`~scenescore.learn.workflow.train_model` removes it once the
     checkpoint is written).
+    ``jobs``: with ``config.members`` of 2 or more, the worker processes the members train in, side by
+    side, the ensemble the same whatever their number (None: one per usable core;
+    :func:`~scenescore.learn.members.train_members`). Spawned workers import the calling script again,
+    so a script that trains with ``jobs`` above 1 keeps its work under ``if __name__ == "__main__":``.
 
     This is the training alone; :func:`scenescore.learn.workflow.train_model` (``ss.train``) also holds
     scenes out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
@@ -87,8 +92,10 @@ def train(
     if resume and state is None:
         raise ConfigError("train: resume=True needs the state file to resume from (state=...)")
     if cfg.members > 1:
-        run = (encoder, progress, validation, log_dir, device, cache, state, resume, save_every, keep_state)
-        return _ensemble(scenes, cfg, seed, *run)
+        run = Run(
+            encoder, progress, validation, log_dir, device, cache, state, resume, save_every, keep_state
+        )
+        return train_members(train, scenes, cfg, seed, run, jobs)
     cached = cached_path(cache, scenes, cfg, encoder, seed, validation, dev) if log_dir is None else None
     if cached is not None and cached.exists():
         return load(cached, device=dev)
@@ -108,60 +115,6 @@ def train(
         Path(cached).parent.mkdir(parents=True, exist_ok=True)
         model.save(cached)  # atomic: a worker training the same model at once writes the same file
     return model
-
-
-def _ensemble(
-    scenes: Sequence[Scene],
-    cfg: TrainConfig,
-    seed: int,
-    encoder: Encoder | None,
-    progress: bool,
-    validation: Sequence[Scene],
-    log_dir: str | os.PathLike | None,
-    device: str | torch.device | None,
-    cache: str | os.PathLike | None,
-    state: str | os.PathLike | None,
-    resume: bool,
-    save_every: int,
-    keep_state: bool,
-) -> ScoreModel:
-    """``cfg.members`` networks, each trained as the single model of its seed (:func:`member_seed`: kept in
-    and loaded from the cache as that model, resumable from its own state file, :func:`member_state`),
-    then their mean energy, its trust reference its own."""
-    single = replace(cfg, members=1)
-    models = []
-    for m in range(cfg.members):
-        if progress:
-            print(f"member {m + 1} of {cfg.members} (seed {member_seed(seed, m)})", file=sys.stderr)
-        logs = None if log_dir is None else Path(log_dir) / f"member{m}"
-        own = None if state is None else member_state(state, m)
-        models.append(
-            train(
-                scenes, single, encoder, member_seed(seed, m), progress, validation, logs, device, cache,
-                own, resume, save_every, keep_state,
-            )
-        )  # fmt: skip
-    infos = [x.info for x in models]
-    curves = [i.history or [] for i in infos]
-    model = ScoreModel(EnsembleNet([n for x in models for n in members_of(x.net)]), models[0].encoder)
-    model.info = ModelInfo(
-        train_config=cfg.to_dict(),
-        seed=seed,
-        scenes=len(scenes),
-        final_loss=sum(i.final_loss or 0.0 for i in infos) / len(infos),
-        chance_loss=infos[0].chance_loss,
-        seconds=round(sum(i.seconds or 0.0 for i in infos), 2),
-        history=[round(sum(c) / len(c), 4) for c in zip(*curves)],
-        members=[{"seed": i.seed, "final_loss": i.final_loss, "seconds": i.seconds} for i in infos],
-    )
-    model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
-    return model
-
-
-def member_state(state: str | os.PathLike, member: int) -> Path:
-    """Where member ``member`` of an ensemble keeps its training state: beside ``state``."""
-    path = Path(state)
-    return path.with_name(f"{path.stem}.member{member}{path.suffix}")
 
 
 def _from_state(state: str | os.PathLike | None, resume: bool) -> bool:

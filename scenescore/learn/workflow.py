@@ -29,7 +29,8 @@ from .config import TrainConfig
 from .crossval import cross_validate, folds_for
 from .data import VALIDATION_FRACTION, check_training_data, split_validation
 from .logs import log_validation
-from .loop import member_state, train
+from .loop import train
+from .members import member_state
 from .training_state import SAVE_EVERY
 
 __all__ = ["NothingLearned", "holdout", "train_model"]
@@ -92,6 +93,7 @@ def train_model(
     resume: bool = False,
     save_every: int = SAVE_EVERY,
     folds: int | None = None,
+    jobs: int | None = 1,
 ) -> ScoreModel:
     """Train a model on ``scenes`` as ``scenescore train`` does, and return it evaluated and calibrated.
 
@@ -108,8 +110,9 @@ def train_model(
     held-out scenes split here, ``<out stem>.val.jsonl``; ``plot``: the learning curve and a few
     held-out placements. ``log``: where the summary lines go (None: nowhere); ``source``: where
     ``scenes`` were read from, named in the line that says how to evaluate the model again.
-    ``log_dir``, ``device``, ``progress``, ``encoder``, ``state``, ``resume``, ``save_every``: as for
-    :func:`~scenescore.learn.loop.train`; the training state is kept until the checkpoint is written.
+    ``log_dir``, ``device``, ``progress``, ``encoder``, ``state``, ``resume``, ``save_every``, ``jobs``: as
+    for :func:`~scenescore.learn.loop.train` (``jobs`` also runs the folds side by side); the training
+    state is kept until the checkpoint is written.
     """
     cfg = config or TrainConfig()
     say: Log = log or (lambda line: None)
@@ -130,6 +133,7 @@ def train_model(
         resume=resume,
         save_every=save_every,
         keep_state=True,  # a run killed before the checkpoint is written resumes with no more training
+        jobs=jobs,
     )
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
@@ -150,7 +154,7 @@ def train_model(
     elif k:
         say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
         ev = cross_validate(
-            scenes, cfg, k, encoder=encoder, seed=seed, device=device, progress=progress, say=say
+            scenes, cfg, k, encoder=encoder, seed=seed, device=device, progress=progress, say=say, jobs=jobs
         )
         examples = _adopt(model, ev, record, log_dir, cfg, say)
     if plot is not None:

@@ -15,6 +15,7 @@ import torch
 
 import scenescore as ss
 from scenescore.cli import main
+from scenescore.errors import ConfigError
 from scenescore.learn import NetworkConfig, TrainConfig, train
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
@@ -132,3 +133,34 @@ def test_train_members_on_the_command_line(tmp_path, scenes, capsys):
     with pytest.raises(SystemExit):
         main(["train", str(data), "--out", str(out), "--members", "17", "--quiet"])
     assert "--members" in capsys.readouterr().err
+
+
+def test_members_trained_in_worker_processes_are_the_same_ensemble(scenes, ensemble):
+    """Each member trains on one torch thread, so training them side by side in two spawned worker
+    processes gives the ensemble one process trains, weights and trust reference alike."""
+    apart = train(scenes, replace(CFG, members=2), seed=SEED, progress=False, jobs=2)
+    assert apart.members == 2 and [m["seed"] for m in apart.info.members] == [3, 1003]
+    mine, theirs = ensemble.net.state_dict(), apart.net.state_dict()
+    assert mine.keys() == theirs.keys()
+    for key in mine:
+        assert torch.equal(mine[key], theirs[key]), key
+    assert apart.info.trust.to_dict() == ensemble.info.trust.to_dict()
+    assert apart.info.final_loss == ensemble.info.final_loss
+
+
+@pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
+def test_jobs_must_be_a_whole_number_of_processes(scenes, jobs):
+    with pytest.raises(ConfigError, match="jobs"):
+        train(scenes, replace(CFG, members=2), seed=SEED, progress=False, jobs=jobs)
+
+
+def test_cross_validation_folds_in_worker_processes_report_the_same(scenes):
+    """The folds of cross-validation run side by side in worker processes with the report one process
+    gives."""
+    from scenescore.learn.crossval import cross_validate
+
+    one, two = (
+        cross_validate(scenes[:6], CFG, 2, seed=SEED, progress=False, say=lambda line: None, jobs=j)
+        for j in (1, 2)
+    )
+    assert one.to_dict() == two.to_dict() and one.categories
