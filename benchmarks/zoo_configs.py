@@ -30,11 +30,11 @@ import argparse
 import json
 import sys
 import time
-from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
-from scenescore.experiments.zoo import catastrophic, good, run
+from scenescore.experiments.zoo import run
+from scenescore.experiments.zoo_verdicts import catastrophic, flag_kinds, trust_line
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.outputs import atomic_write_text
 from scenescore.placement import PLACE
@@ -70,7 +70,10 @@ def main() -> None:
     )
     args = ap.parse_args()
     if args.records is not None:
-        records = json.loads(args.records.read_text(encoding="utf-8"))
+        try:
+            records = json.loads(args.records.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as e:
+            sys.exit(f"--records {args.records}: cannot read the case records: {e}")
         per_case = records["cases"] if "config" in records else records  # else experiment zoo's
         print(trust_line(per_case))
         print(flag_kinds(per_case))
@@ -125,39 +128,6 @@ def main() -> None:
     print()
     for line in summary:
         print(line)
-
-
-def trust_line(per_case: dict[str, list[dict]]) -> str:
-    """The trust check pooled over every scenario's case records: the catastrophic placements flagged,
-    those the ``rival`` flag is among the flags of, and the good ones (:func:`good`) flagged."""
-    bad = flagged = rival = n_good = good_flagged = 0
-    for cases in per_case.values():
-        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
-            bad += int(b)
-            flagged += int(b and c["flagged"])
-            rival += int(b and any(f.startswith("rival:") for f in c["flags"]))
-            n_good += int(g)
-            good_flagged += int(g and c["flagged"])
-    share = good_flagged / n_good if n_good else 0.0
-    return (
-        f"flagged: {flagged} of {bad} catastrophic ({rival} by rival), "
-        f"{good_flagged} of {n_good} good ({100 * share:.1f}%)"
-    )
-
-
-def flag_kinds(per_case: dict[str, list[dict]]) -> str:
-    """How many catastrophic and how many good placements each kind of flag (``energy``, ``members``,
-    ``rival``, ...) is among the flags of, pooled over the scenarios."""
-    on: dict[str, Counter[str]] = {"catastrophic": Counter(), "good": Counter()}
-    for cases in per_case.values():
-        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
-            kinds = {f.split(":")[0] for f in c["flags"]}
-            on["catastrophic"].update(kinds if b else ())
-            on["good"].update(kinds if g else ())
-    return "; ".join(
-        f"flags on {k} placements: " + (", ".join(f"{f} {n}" for f, n in sorted(v.items())) or "none")
-        for k, v in on.items()
-    )
 
 
 def _bad_flagged(cases: list[dict]) -> str:

@@ -38,6 +38,7 @@ from ..scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
 from ..tasks import Codec, Sweep, Task, run_tasks
 from .report import Row, format_table
+from .zoo_verdicts import CATASTROPHIC_CM, CATASTROPHIC_ORACLE, GOOD_ORACLE, catastrophic, good, trust_line
 
 __all__ = [
     "zoo_cases",
@@ -52,10 +53,6 @@ __all__ = [
     "good",
     "GOOD_ORACLE",
 ]
-
-CATASTROPHIC_CM = 25.0  # a placement is catastrophic when it is this far off ...
-CATASTROPHIC_ORACLE = 10.0  # ... and this many oracle means
-GOOD_ORACLE = 3.0  # a placement is good within this many oracle means
 
 
 def zoo_cases(scenario: Any, test: list[Scene], seed: int) -> list[MissingCase]:
@@ -137,22 +134,6 @@ class ZooResult:
             }
             out.append(Row(name, figs))
         return sorted(out, key=lambda r: -r.figures["ratio"])
-
-
-def catastrophic(cases: Sequence[dict[str, Any]]) -> np.ndarray:
-    """Which of one scenario's case records are catastrophic: more than :data:`CATASTROPHIC_CM` and
-    :data:`CATASTROPHIC_ORACLE` oracle means (the scenario's mean oracle error) off."""
-    t = np.array([c["t_cm"] for c in cases])
-    om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
-    return (t > CATASTROPHIC_CM) & (t > CATASTROPHIC_ORACLE * om)
-
-
-def good(cases: Sequence[dict[str, Any]]) -> np.ndarray:
-    """Which of one scenario's case records are good: within :data:`GOOD_ORACLE` oracle means (the
-    scenario's mean oracle error)."""
-    t = np.array([c["t_cm"] for c in cases])
-    om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
-    return t <= GOOD_ORACLE * max(om, 1e-9)
 
 
 def place_back(
@@ -431,5 +412,5 @@ def format_zoo(res: ZooResult) -> str:
         + f"\n\n{n} placements. Catastrophic: more than {CATASTROPHIC_CM:g} cm and more than "
         f"{CATASTROPHIC_ORACLE:g} oracle means off. Good: within 3 oracle means; a miss "
         "is not good: the search's when the truth has the lower learned energy, the energy's when the placement "
-        "has. Sorted worst first (t / oracle)."
+        "has. Sorted worst first (t / oracle).\n\nTrust check, " + trust_line(res.per_case) + "."
     )

@@ -29,6 +29,7 @@ def test_zoo_in_workers_equals_one_process():
         assert a == pytest.approx(b, abs=1e-5)
     md = zoo.format_zoo(two)
     assert "| zoo-cascade |" in md and "| zoo-hall |" in md and "32 placements" in md
+    assert "Trust check, flagged: " in md and " catastrophic (" in md
 
 
 def test_zoo_rejects_unknown_scenario_and_bad_jobs():

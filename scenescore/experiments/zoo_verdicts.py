@@ -1,0 +1,82 @@
+"""The zoo's verdicts on placements: catastrophic, good, and how the trust check did on each.
+
+A placement is catastrophic when it is more than :data:`CATASTROPHIC_CM` and more than
+:data:`CATASTROPHIC_ORACLE` oracle means off, good within :data:`GOOD_ORACLE` oracle means (the oracle's
+mean error over the scenario's placements). The trust check should flag every catastrophic placement and
+few good ones: :func:`trust_line` counts both, pooled over the scenarios, and :func:`flag_kinds` which
+kinds of flag fired on each. Each case record is a dict with ``t_cm``, ``oracle_t_cm``, ``flagged`` and
+``flags`` (:func:`scenescore.experiments.zoo.run`).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "CATASTROPHIC_CM",
+    "CATASTROPHIC_ORACLE",
+    "GOOD_ORACLE",
+    "catastrophic",
+    "good",
+    "trust_line",
+    "flag_kinds",
+]
+
+Cases = Sequence[dict[str, Any]]
+
+CATASTROPHIC_CM = 25.0  # a placement is catastrophic when it is this far off ...
+CATASTROPHIC_ORACLE = 10.0  # ... and this many oracle means
+GOOD_ORACLE = 3.0  # a placement is good within this many oracle means
+
+
+def catastrophic(cases: Cases) -> np.ndarray:
+    """Which of one scenario's case records are catastrophic: more than :data:`CATASTROPHIC_CM` and
+    :data:`CATASTROPHIC_ORACLE` oracle means (the scenario's mean oracle error) off."""
+    t = np.array([c["t_cm"] for c in cases])
+    om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
+    return (t > CATASTROPHIC_CM) & (t > CATASTROPHIC_ORACLE * om)
+
+
+def good(cases: Cases) -> np.ndarray:
+    """Which of one scenario's case records are good: within :data:`GOOD_ORACLE` oracle means (the
+    scenario's mean oracle error)."""
+    t = np.array([c["t_cm"] for c in cases])
+    om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
+    return t <= GOOD_ORACLE * max(om, 1e-9)
+
+
+def trust_line(per_case: Mapping[str, Cases]) -> str:
+    """The trust check pooled over every scenario's case records: the catastrophic placements flagged,
+    those the ``rival`` flag is among the flags of, and the good ones flagged."""
+    bad = flagged = rival = n_good = good_flagged = 0
+    for cases in per_case.values():
+        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
+            bad += int(b)
+            flagged += int(b and c["flagged"])
+            rival += int(b and any(f.startswith("rival:") for f in c["flags"]))
+            n_good += int(g)
+            good_flagged += int(g and c["flagged"])
+    share = good_flagged / n_good if n_good else 0.0
+    return (
+        f"flagged: {flagged} of {bad} catastrophic ({rival} by rival), "
+        f"{good_flagged} of {n_good} good ({100 * share:.1f}%)"
+    )
+
+
+def flag_kinds(per_case: Mapping[str, Cases]) -> str:
+    """How many catastrophic and how many good placements each kind of flag (``energy``, ``members``,
+    ``rival``, ...) is among the flags of, pooled over the scenarios."""
+    on: dict[str, Counter[str]] = {"catastrophic": Counter(), "good": Counter()}
+    for cases in per_case.values():
+        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
+            kinds = {f.split(":")[0] for f in c["flags"]}
+            on["catastrophic"].update(kinds if b else ())
+            on["good"].update(kinds if g else ())
+    return "; ".join(
+        f"flags on {k} placements: " + (", ".join(f"{f} {n}" for f, n in sorted(v.items())) or "none")
+        for k, v in on.items()
+    )
