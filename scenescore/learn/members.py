@@ -64,15 +64,13 @@ def training_jobs(jobs: int | None, tasks: int, device: torch.device) -> int:
     ``jobs``, at most one per task, by default one per usable core
     (:func:`~scenescore.workers.default_jobs`); 1 (this process) inside a worker process, which cannot
     start workers of its own."""
-    if multiprocessing.current_process().daemon:
-        return 1
-    if jobs is None:
-        jobs = default_jobs(device)
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise ConfigError(
             f"train: jobs: expected a whole number of worker processes, 1 or more, got {jobs!r}"
         )
-    return min(jobs, tasks)
+    if multiprocessing.current_process().daemon:
+        return 1
+    return min(default_jobs(device) if jobs is None else jobs, tasks)
 
 
 def train_members(
