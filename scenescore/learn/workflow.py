@@ -137,8 +137,11 @@ def train_model(
     )
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
+    took = f"in {info.seconds:.0f} s"
+    if cfg.members > 1:  # the members' times summed: they may have trained side by side
+        took = f"as {cfg.members} members, {info.seconds:.0f} s of training in all"
     say(
-        f"trained on {info.scenes} scenes in {info.seconds:.0f} s "
+        f"trained on {info.scenes} scenes {took} "
         f"(final loss {info.final_loss:.3f}, chance {info.chance_loss:.3f})"
     )
     if not info.final_loss < info.chance_loss and not force:

@@ -129,7 +129,7 @@ def test_train_members_on_the_command_line(tmp_path, scenes, capsys):
     argv += ["--set", "network.hidden=16", "--set", "network.layers=1", "--quiet", "--force"]
     assert main(argv) == 0
     assert load(out).members == 2
-    capsys.readouterr()
+    assert "trained on 10 scenes as 2 members, " in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main(["train", str(data), "--out", str(out), "--members", "17", "--quiet"])
     assert "--members" in capsys.readouterr().err
