@@ -1,9 +1,10 @@
-"""Worker processes that never outlive the run that started them.
+"""Worker processes that never outlive the run that started them, nor hang it when one dies.
 
 :func:`worker_pool` is a ``spawn`` pool of ``jobs`` processes: a failure or Ctrl-C in the parent
 terminates them at once (not after their current task), and each watches its parent and exits within a
 second when the parent is gone, even when it was killed outright (``kill -9``), so that stopping a long
-experiment never leaves orphans computing on a shared machine.
+experiment never leaves orphans computing on a shared machine. A worker that dies in its task (killed by
+the system for memory, say) ends the run with :class:`WorkerDied` instead of leaving it waiting.
 """
 
 from __future__ import annotations
@@ -12,12 +13,20 @@ import os
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from multiprocessing import get_context
-from multiprocessing.pool import Pool
 from typing import Any, TypeVar
 
-__all__ = ["worker_pool", "map_in_workers", "default_jobs", "GPU_WORKER_BYTES", "PARENT_POLL_S"]
+__all__ = [
+    "worker_pool",
+    "map_in_workers",
+    "default_jobs",
+    "WorkerDied",
+    "GPU_WORKER_BYTES",
+    "PARENT_POLL_S",
+]
 
 T = TypeVar("T")
 Log = Callable[[str], None]
@@ -59,20 +68,33 @@ def default_jobs(device: Any = None) -> int:
     return 1
 
 
+class WorkerDied(RuntimeError):
+    """A worker process ended in the middle of a task without an error of its own: killed by a signal,
+    most often by the system when memory ran out."""
+
+
 @contextmanager
-def worker_pool(jobs: int) -> Iterator[Pool]:
-    """A pool of ``jobs`` spawned processes: closed and joined when the block ends, terminated when it
-    raises (``KeyboardInterrupt`` included); its workers exit when this process dies."""
-    pool = get_context("spawn").Pool(jobs, initializer=_exit_with_parent, initargs=(os.getpid(),))
+def worker_pool(jobs: int) -> Iterator[ProcessPoolExecutor]:
+    """A pool of ``jobs`` spawned processes: shut down when the block ends, its workers terminated when
+    it raises (``KeyboardInterrupt`` included); its workers exit when this process dies."""
+    pool = ProcessPoolExecutor(
+        jobs, mp_context=get_context("spawn"), initializer=_exit_with_parent, initargs=(os.getpid(),)
+    )
     try:
         yield pool
     except BaseException:
-        pool.terminate()
+        _terminate(pool)
         raise
-    else:
-        pool.close()
     finally:
-        pool.join()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop ``pool``'s workers now, in the middle of their tasks (what ``Pool.terminate`` does)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # shutdown forgets them
+    for process in processes:
+        process.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def map_in_workers(
@@ -107,7 +129,16 @@ def map_in_workers(
             total=len(items), desc=bar, disable=None if bar else True, unit="task", dynamic_ncols=True
         ) as shown,
     ):
-        for k, value, lines in pool.imap_unordered(_one, [(fn, k, item) for k, item in enumerate(items)]):
+        futures: list[Future] = [pool.submit(_one, (fn, k, item)) for k, item in enumerate(items)]
+        for future in as_completed(futures):
+            try:
+                k, value, lines = future.result()
+            except BrokenProcessPool:
+                raise WorkerDied(
+                    f"a worker process died in the middle of its task ({len(results)} of {len(items)} "
+                    "done), killed by a signal: most often the system's, when memory runs out; run again "
+                    "with fewer worker processes (--jobs)"
+                ) from None
             with shown.external_write_mode():
                 for line in lines:
                     log(line)

@@ -48,7 +48,7 @@ def test_an_error_in_the_parent_terminates_the_workers():
     with pytest.raises(RuntimeError, match="stop"):
         with worker_pool(2) as pool:
             pids = list(set(pool.map(_pid, range(8))))
-            pool.apply_async(time.sleep, (60,))
+            pool.submit(time.sleep, 60)
             raise RuntimeError("stop")
     assert _wait_gone(pids, 5.0) == []
 
@@ -65,7 +65,7 @@ def test_workers_exit_when_their_parent_is_killed_outright(tmp_path):
         if __name__ == "__main__":
             with worker_pool(2) as pool:
                 pids = sorted(set(pool.map(pid, range(8))))
-                pool.apply_async(time.sleep, (60,))
+                pool.submit(time.sleep, 60)
                 print(*pids, flush=True)
                 time.sleep(60)
         """
@@ -186,3 +186,22 @@ def test_map_in_workers_with_a_bar_keeps_results_in_order_and_every_log_line(cap
     assert map_in_workers(_square, [3, 1, 2], jobs=2, log=lines.append, bar="squares") == [9, 1, 4]
     assert sorted(lines) == ["item 1", "item 2", "item 3"]
     assert "squares" not in capsys.readouterr().err  # not a terminal: no bar drawn
+
+
+def _die_on_one(x: int, log) -> int:
+    if x == 1:
+        os.kill(os.getpid(), signal.SIGKILL)  # as the system's out-of-memory killer would
+    time.sleep(0.2)
+    return x
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="sends signals")
+def test_a_worker_killed_in_its_task_ends_the_run_with_a_clear_error():
+    """A worker that dies without an error of its own (SIGKILL) raises WorkerDied at once: the run
+    neither waits for the lost task forever nor leaves the other workers running."""
+    from scenescore.workers import WorkerDied, map_in_workers
+
+    t0 = time.monotonic()
+    with pytest.raises(WorkerDied, match="fewer worker processes"):
+        map_in_workers(_die_on_one, [0, 1, 2, 3], jobs=2, log=lambda line: None)
+    assert time.monotonic() - t0 < 30

@@ -44,6 +44,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from ..errors import ConfigError
     from ..models import CheckpointError
     from ..scene import SceneError
+    from ..workers import WorkerDied
 
     errs: list[type[BaseException]] = [
         UserError,
@@ -52,6 +53,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
         ConfigError,
         FileNotFoundError,
         TasksFailed,
+        WorkerDied,
     ]
     try:
         from ..problem import ProblemError
