@@ -27,3 +27,17 @@ def test_benchmark_help_runs(script, monkeypatch, capsys):
     assert done.value.code == 0
     out = capsys.readouterr().out
     assert out.startswith("usage:"), out[:200]
+
+
+def test_trust_margins_judges_the_share_flags_at_a_margin():
+    """benchmarks/trust_margins.py: a share beyond the largest plus ``margin`` IQRs flags; the members
+    flag needs that many members beyond their own limits; other recorded flags always flag."""
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "trust_margins.py"
+    flagged = runpy.run_path(str(script))["_flagged"]
+    alone = {"shares": [1.5, 0.0, 0.0, 0.0], "refs": [(1.0, 1.0)] * 4}  # the mean's, then 3 members'
+    case = {"flags": ["energy: ...", "members: ..."]}  # share flags: judged again, not read
+    assert flagged(case, alone, 0.4, 1) and not flagged(case, alone, 0.5, 1)  # 1.5 > 1 + 0.4, not 1 + 0.5
+    s = {"shares": [1.0, 1.2, 0.0, 3.0], "refs": [(1.0, 1.0)] * 4}
+    assert flagged(case, s, 0.1, 2) and not flagged(case, s, 0.1, 3)  # members 1 and 3 beyond 1.1
+    assert not flagged(case, s, 0.1, 0) and not flagged(case, s, 2.5, 1)  # no members flag; 3.0 < 3.5
+    assert flagged({"flags": ["far: ..."]}, s, 9.0, 0)  # another flag, as recorded

@@ -1,0 +1,124 @@
+"""The trust check's share flags judged again at other margins, from a zoo run's records and models.
+
+    python benchmarks/trust_margins.py --records DIR/config-0.json --cache DIR [--train-scenes 12] \\
+        [--config '{"members": 3}'] [--margins 0.5,1,2,4]
+
+The ``energy`` flag fires when a placed object's share of the energy lies beyond its category's largest
+in the reference scenes plus ``margin`` times their interquartile range (the check's margin is 0.5);
+an ensemble's ``members`` flag when some member's share lies beyond that member's own such limit. A
+zoo run's records (``benchmarks/zoo_configs.py --out``, or ``scenescore experiment zoo --out``'s
+``cases.json``) keep each placement's pose and its flags' texts, not the shares; this script reads the
+run's models back from its model cache (it trains none: the same code, settings and cache as the run),
+computes each placed object's shares, and prints for each margin, and for the ``members`` flag needing
+1, 2 or all members, how many catastrophic and how many good placements the whole check flags (the
+other flags as the run recorded them). The first row, the check's own margin, reproduces the run's
+flags; the script says so, or names the placements where it does not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from scenescore.experiments.zoo import zoo_cases
+from scenescore.experiments.zoo_verdicts import catastrophic, good
+from scenescore.learn import TrainConfig, split_validation, train
+from scenescore.learn.cache import cached_path
+from scenescore.models.ensemble import member_seed
+from scenescore.models.shares import shares_by_energy
+from scenescore.scenarios import get
+
+SHARE_FLAGS = ("energy:", "members:")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--records", type=Path, required=True, help="a zoo run's case records")
+    ap.add_argument("--cache", type=Path, required=True, help="the run's model cache")
+    ap.add_argument("--config", default="{}", help="the run's TrainConfig overrides (JSON)")
+    ap.add_argument("--train-scenes", type=int, default=None, help="the run's --train-scenes")
+    ap.add_argument("--margins", default="0.5,1,2,4", help="interquartile ranges beyond the largest")
+    args = ap.parse_args()
+    try:
+        records = json.loads(args.records.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        sys.exit(f"--records {args.records}: cannot read the case records: {e}")
+    per_case = records["cases"] if "config" in records else records
+    cfg = TrainConfig(**json.loads(args.config))
+    margins = [float(m) for m in args.margins.split(",")]
+    shares = {name: _shares(name, cases, cfg, args) for name, cases in per_case.items()}
+    print("| energy margin (IQR) | members needed | catastrophic flagged | good flagged |")
+    print("|---:|---:|---:|---:|")
+    for m in margins:
+        for need in range(1, cfg.members + 1) if cfg.members > 1 else [0]:
+            bad = flagged_bad = n_good = flagged_good = 0
+            for name, cases in per_case.items():
+                for c, s, b, g in zip(cases, shares[name], catastrophic(cases), good(cases)):
+                    fl = _flagged(c, s, m, need)
+                    bad, flagged_bad = bad + int(b), flagged_bad + int(b and fl)
+                    n_good, flagged_good = n_good + int(g), flagged_good + int(g and fl)
+            share = 100 * flagged_good / max(n_good, 1)
+            print(
+                f"| {m:g} | {need or '-'} | {flagged_bad} of {bad} | {flagged_good} of {n_good} ({share:.1f}%) |"
+            )
+    odd = [
+        f"{name} #{k}"
+        for name, cases in per_case.items()
+        for k, (c, s) in enumerate(zip(cases, shares[name]))
+        if _flagged(c, s, 0.5, 1 if cfg.members > 1 else 0) != c["flagged"]
+    ]
+    print(f"\nmargin 0.5 reproduces the run's flags: {'yes' if not odd else 'no, at ' + ', '.join(odd)}")
+
+
+def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Namespace) -> list[dict]:
+    """Each record's placed object's shares and limits: by the mean energy, then by each member."""
+    sc = get(name)
+    out: list[dict] = []
+    for seed in sorted({c["seed"] for c in cases}):
+        train_s, test_s = sc.split(seed)
+        if args.train_scenes is not None:
+            train_s = train_s[: args.train_scenes]
+        train_s, held = split_validation(train_s, 0.0, seed=seed)
+        for m in range(cfg.members):  # the models are read back, never trained here
+            single = TrainConfig(**{**json.loads(args.config), "members": 1})
+            path = cached_path(
+                args.cache, train_s, single, None, member_seed(seed, m), held, torch.device("cpu")
+            )
+            if path is None or not path.exists():
+                sys.exit(
+                    f"{name} seed {seed}: member {m} is not in {args.cache}; run this with the run's code"
+                )
+        model = train(train_s, cfg, seed=seed, progress=False, cache=args.cache)
+        ref = model.info.trust
+        mine = [c for c in cases if c["seed"] == seed]
+        for case, rec in zip(zoo_cases(sc, test_s, seed), mine, strict=True):
+            placed = case.scene.with_poses([rec["pose"]], [case.name])
+            rows = shares_by_energy(model, placed, [case.name], members=True)[:, 0]
+            cat = case.category
+            refs = [ref.category_shares(cat)] + [ref.category_shares(cat, k) for k in range(len(rows) - 1)]
+            out.append({"shares": rows.tolist(), "refs": [_spread(r) for r in refs]})
+    return out
+
+
+def _spread(values: np.ndarray) -> tuple[float, float]:
+    """The reference's largest share and its interquartile range."""
+    q25, q75 = np.percentile(values, [25, 75])
+    return float(values.max()), float(q75 - q25)
+
+
+def _flagged(case: dict, s: dict, margin: float, need: int) -> bool:
+    """Whether the check flags ``case`` with the share flags at ``margin`` (``members`` when ``need``
+    members or more put the share beyond their limit; 0: no members flag), its other flags as recorded."""
+    others = any(not f.startswith(SHARE_FLAGS) for f in case["flags"])
+    (top, iqr), share = s["refs"][0], s["shares"][0]
+    beyond = [v > t + margin * q for v, (t, q) in zip(s["shares"][1:], s["refs"][1:])]
+    return others or share > top + margin * iqr or (need > 0 and sum(beyond) >= need)
+
+
+if __name__ == "__main__":
+    main()
