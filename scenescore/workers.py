@@ -91,7 +91,11 @@ def worker_pool(jobs: int) -> Iterator[ProcessPoolExecutor]:
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
     """Stop ``pool``'s workers now, in the middle of their tasks (what ``Pool.terminate`` does)."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())  # shutdown forgets them
+    if hasattr(pool, "terminate_workers"):  # Python 3.14 and later
+        pool.terminate_workers()
+        return
+    # before 3.14 the executor's own map of its processes (private; shutdown forgets it)
+    processes = list((getattr(pool, "_processes", None) or {}).values())
     for process in processes:
         process.terminate()
     pool.shutdown(wait=False, cancel_futures=True)
