@@ -1,18 +1,20 @@
 """The trust check's share flags judged again at other margins, from a zoo run's records and models.
 
     python benchmarks/trust_margins.py --records DIR/config-0.json --cache DIR [--train-scenes 12] \\
-        [--config '{"members": 3}'] [--margins 0.5,1,2,4]
+        [--config '{"members": 3}'] [--margins 0.5,1,2,4] [--member-margin 0.5] [--run-margins 1,0.5]
 
 The ``energy`` flag fires when a placed object's share of the energy lies beyond its category's largest
-in the reference scenes plus ``margin`` times their interquartile range (the check's margin is 0.5);
-an ensemble's ``members`` flag when some member's share lies beyond that member's own such limit. A
+in the reference scenes plus ``margin`` times their interquartile range (the check's margin is
+``SHARE_MARGIN``); an ensemble's ``members`` flag when some member's share lies beyond that member's own
+such limit (at ``--member-margin``, by default the check's ``MEMBER_MARGIN``). A
 zoo run's records (``benchmarks/zoo_configs.py --out``, or ``scenescore experiment zoo --out``'s
 ``cases.json``) keep each placement's pose and its flags' texts, not the shares; this script reads the
 run's models back from its model cache (it trains none: the same code, settings and cache as the run),
 computes each placed object's shares, and prints for each margin, and for the ``members`` flag needing
 1, 2 or all members, how many catastrophic and how many good placements the whole check flags (the
-other flags as the run recorded them). The first row, the check's own margin, reproduces the run's
-flags; the script says so, or names the placements where it does not.
+other flags as the run recorded them). At the margins the run was made with (``--run-margins SHARE,
+MEMBER``, by default the check's own) it reproduces the run's flags: the script says so, or names the
+placements where it does not.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from scenescore.learn import TrainConfig, split_validation, train
 from scenescore.learn.cache import cached_path
 from scenescore.models.ensemble import member_seed
 from scenescore.models.shares import shares_by_energy
+from scenescore.models.trust import MEMBER_MARGIN, SHARE_MARGIN
 from scenescore.scenarios import get
 
 SHARE_FLAGS = ("energy:", "members:")
@@ -43,6 +46,12 @@ def main() -> None:
     ap.add_argument("--config", default="{}", help="the run's TrainConfig overrides (JSON)")
     ap.add_argument("--train-scenes", type=int, default=None, help="the run's --train-scenes")
     ap.add_argument("--margins", default="0.5,1,2,4", help="interquartile ranges beyond the largest")
+    ap.add_argument("--member-margin", type=float, default=MEMBER_MARGIN, help="the members flag's margin")
+    ap.add_argument(
+        "--run-margins",
+        default=f"{SHARE_MARGIN:g},{MEMBER_MARGIN:g}",
+        help="the share and member margins of the code that made the run (default the check's own)",
+    )
     args = ap.parse_args()
     try:
         records = json.loads(args.records.read_text(encoding="utf-8"))
@@ -59,20 +68,22 @@ def main() -> None:
             bad = flagged_bad = n_good = flagged_good = 0
             for name, cases in per_case.items():
                 for c, s, b, g in zip(cases, shares[name], catastrophic(cases), good(cases)):
-                    fl = _flagged(c, s, m, need)
+                    fl = _flagged(c, s, m, need, args.member_margin)
                     bad, flagged_bad = bad + int(b), flagged_bad + int(b and fl)
                     n_good, flagged_good = n_good + int(g), flagged_good + int(g and fl)
             share = 100 * flagged_good / max(n_good, 1)
             print(
                 f"| {m:g} | {need or '-'} | {flagged_bad} of {bad} | {flagged_good} of {n_good} ({share:.1f}%) |"
             )
+    share_m, member_m = (float(v) for v in args.run_margins.split(","))
     odd = [
         f"{name} #{k}"
         for name, cases in per_case.items()
         for k, (c, s) in enumerate(zip(cases, shares[name]))
-        if _flagged(c, s, 0.5, 1 if cfg.members > 1 else 0) != c["flagged"]
+        if _flagged(c, s, share_m, 1 if cfg.members > 1 else 0, member_m) != c["flagged"]
     ]
-    print(f"\nmargin 0.5 reproduces the run's flags: {'yes' if not odd else 'no, at ' + ', '.join(odd)}")
+    verdict = "yes" if not odd else "no, at " + ", ".join(odd)
+    print(f"\nmargins {share_m:g} and {member_m:g} reproduce the run's flags: {verdict}")
 
 
 def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Namespace) -> list[dict]:
@@ -111,12 +122,13 @@ def _spread(values: np.ndarray) -> tuple[float, float]:
     return float(values.max()), float(q75 - q25)
 
 
-def _flagged(case: dict, s: dict, margin: float, need: int) -> bool:
-    """Whether the check flags ``case`` with the share flags at ``margin`` (``members`` when ``need``
-    members or more put the share beyond their limit; 0: no members flag), its other flags as recorded."""
+def _flagged(case: dict, s: dict, margin: float, need: int, member_margin: float = MEMBER_MARGIN) -> bool:
+    """Whether the check flags ``case`` with the energy flag at ``margin`` (``members`` when ``need``
+    members or more put the share beyond their limit at ``member_margin``; 0: no members flag), its
+    other flags as recorded."""
     others = any(not f.startswith(SHARE_FLAGS) for f in case["flags"])
     (top, iqr), share = s["refs"][0], s["shares"][0]
-    beyond = [v > t + margin * q for v, (t, q) in zip(s["shares"][1:], s["refs"][1:])]
+    beyond = [v > t + member_margin * q for v, (t, q) in zip(s["shares"][1:], s["refs"][1:])]
     return others or share > top + margin * iqr or (need > 0 and sum(beyond) >= need)
 
 

@@ -38,6 +38,6 @@ def test_trust_margins_judges_the_share_flags_at_a_margin():
     case = {"flags": ["energy: ...", "members: ..."]}  # share flags: judged again, not read
     assert flagged(case, alone, 0.4, 1) and not flagged(case, alone, 0.5, 1)  # 1.5 > 1 + 0.4, not 1 + 0.5
     s = {"shares": [1.0, 1.2, 0.0, 3.0], "refs": [(1.0, 1.0)] * 4}
-    assert flagged(case, s, 0.1, 2) and not flagged(case, s, 0.1, 3)  # members 1 and 3 beyond 1.1
-    assert not flagged(case, s, 0.1, 0) and not flagged(case, s, 2.5, 1)  # no members flag; 3.0 < 3.5
+    assert flagged(case, s, 0.1, 2, 0.1) and not flagged(case, s, 0.1, 3, 0.1)  # members 1 and 3 > 1.1
+    assert not flagged(case, s, 0.1, 0, 0.1) and not flagged(case, s, 0.1, 1, 2.5)  # none; 3.0 < 3.5
     assert flagged({"flags": ["far: ..."]}, s, 9.0, 0)  # another flag, as recorded

@@ -10,11 +10,13 @@ category's reference shares at or above its own) and flags it,
 with the reason, when
 
 - the object's share of the energy (the scene's energy minus the scene's without it) lies beyond that of
-  every object of its category in the reference scenes (``energy``; in checkpoints from before those
+  every object of its category in the reference scenes, by more than :data:`SHARE_MARGIN` times their
+  interquartile range (``energy``; in checkpoints from before those
   shares were stored: the placed scene's energy per object beyond the reference scenes'),
 - for an ensemble (:mod:`scenescore.models.ensemble`): some member's energy puts the object's share
-  beyond that of every object of its category in the reference scenes by that member (``members``: the
-  members disagree; the confidence is then the lowest member's),
+  beyond that of every object of its category in the reference scenes by that member, by more than
+  :data:`MEMBER_MARGIN` times their interquartile range (``members``: the members disagree; the
+  confidence is then the lowest member's),
 - the object is farther from every other object than any object of its category in the data (``far``),
   or farther from every object of some category (``apart``: a chair from every table;
   :func:`~scenescore.models.layout.apart_limits`),
@@ -70,6 +72,8 @@ __all__ = [
     "energy_shares",
     "member_shares",
     "CAVEAT",
+    "SHARE_MARGIN",
+    "MEMBER_MARGIN",
 ]
 
 # length scales: a category whose data come this close to a bound may be pinned there (a nightstand
@@ -80,6 +84,13 @@ FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours t
 MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
+# interquartile ranges of the reference beyond its largest value at which a flag fires: the energy
+# share's (1: at 0.5 it flagged more good placements on the zoo and no more catastrophic ones,
+# benchmarks/trust_margins.py), an ensemble member's share (0.5: at 1 one catastrophic placement of the
+# zoo at 12 scenes went unflagged), the energy per object of a checkpoint without shares
+SHARE_MARGIN = 1.0
+MEMBER_MARGIN = 0.5
+ENERGY_MARGIN = 0.5
 CAVEAT = "validation: "  # how a flag from the model's held-out evaluation begins (not out of distribution)
 
 
@@ -158,8 +169,9 @@ class TrustReference:
 
     @property
     def energy_limit(self) -> float:
-        """Energies above this lie beyond the reference: its largest plus half its interquartile range."""
-        return _beyond(np.asarray(self.energies))
+        """Energies above this lie beyond the reference: its largest plus :data:`ENERGY_MARGIN` times its
+        interquartile range."""
+        return _beyond(np.asarray(self.energies), ENERGY_MARGIN)
 
     def category_shares(self, category: str, member: int | None = None) -> np.ndarray:
         """The reference shares an object of ``category`` is judged against: its own category's, every
@@ -169,8 +181,9 @@ class TrustReference:
         return np.sort(np.asarray(rows, dtype=np.float64))
 
     def share_limit(self, category: str) -> float:
-        """Shares above this lie beyond the reference's: its largest plus half its interquartile range."""
-        return _beyond(self.category_shares(category))
+        """Shares above this lie beyond the reference's: its largest plus :data:`SHARE_MARGIN` times its
+        interquartile range."""
+        return _beyond(self.category_shares(category), SHARE_MARGIN)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -242,13 +255,13 @@ def _members_doubt(ref: TrustReference, category: str, shares: np.ndarray) -> tu
     the lowest member's confidence, and how many members put it beyond their reference's shares."""
     refs = [ref.category_shares(category, m) for m in range(len(shares))]
     confidence = min(float(np.mean(r >= v)) for r, v in zip(refs, shares))
-    return confidence, sum(int(v > _beyond(r)) for r, v in zip(refs, shares))
+    return confidence, sum(int(v > _beyond(r, MEMBER_MARGIN)) for r, v in zip(refs, shares))
 
 
-def _beyond(values: np.ndarray) -> float:
-    """The reference's largest value plus half its interquartile range."""
+def _beyond(values: np.ndarray, margin: float) -> float:
+    """The reference's largest value plus ``margin`` times its interquartile range."""
     q25, q75 = np.percentile(values, [25, 75])
-    return float(values.max() + 0.5 * (q75 - q25))
+    return float(values.max() + margin * (q75 - q25))
 
 
 @dataclass
@@ -384,7 +397,7 @@ def assess(
         if ref.shares:
             mine = ref.category_shares(o.category)
             mean_confidence = float(np.mean(mine >= share[name]))
-            limit = _beyond(mine)  # ref.share_limit(o.category)
+            limit = ref.share_limit(o.category)
             whose = f"any {o.category}'s" if o.category in ref.shares else "any object's"
             if share[name] > limit:
                 flags.append(
