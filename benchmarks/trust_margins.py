@@ -22,18 +22,18 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from scenescore.experiments.zoo import zoo_cases
-from scenescore.experiments.zoo_verdicts import catastrophic, good
+from scenescore.experiments.zoo_verdicts import catastrophic, good, read_cases
 from scenescore.learn import TrainConfig, split_validation, train
 from scenescore.learn.cache import cached_path
 from scenescore.models.ensemble import member_seed
 from scenescore.models.shares import shares_by_energy
-from scenescore.models.trust import MEMBER_MARGIN, SHARE_MARGIN
+from scenescore.models.trust import MEMBER_MARGIN, SHARE_MARGIN, limit_beyond
 from scenescore.scenarios import get
 
 SHARE_FLAGS = ("energy:", "members:")
@@ -54,10 +54,9 @@ def main() -> None:
     )
     args = ap.parse_args()
     try:
-        records = json.loads(args.records.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        sys.exit(f"--records {args.records}: cannot read the case records: {e}")
-    per_case = records["cases"] if "config" in records else records
+        per_case = read_cases(args.records)
+    except ValueError as e:
+        sys.exit(f"--records {e}")
     cfg = TrainConfig(**json.loads(args.config))
     margins = [float(m) for m in args.margins.split(",")]
     shares = {name: _shares(name, cases, cfg, args) for name, cases in per_case.items()}
@@ -87,8 +86,10 @@ def main() -> None:
 
 
 def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Namespace) -> list[dict]:
-    """Each record's placed object's shares and limits: by the mean energy, then by each member."""
+    """Each record's placed object's shares and the reference shares they are judged against: by the
+    mean energy, then by each member."""
     sc = get(name)
+    single = replace(cfg, members=1)  # each member is cached as the single model of its seed
     out: list[dict] = []
     for seed in sorted({c["seed"] for c in cases}):
         train_s, test_s = sc.split(seed)
@@ -96,7 +97,6 @@ def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Names
             train_s = train_s[: args.train_scenes]
         train_s, held = split_validation(train_s, 0.0, seed=seed)
         for m in range(cfg.members):  # the models are read back, never trained here
-            single = TrainConfig(**{**json.loads(args.config), "members": 1})
             path = cached_path(
                 args.cache, train_s, single, None, member_seed(seed, m), held, torch.device("cpu")
             )
@@ -112,14 +112,8 @@ def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Names
             rows = shares_by_energy(model, placed, [case.name], members=True)[:, 0]
             cat = case.category
             refs = [ref.category_shares(cat)] + [ref.category_shares(cat, k) for k in range(len(rows) - 1)]
-            out.append({"shares": rows.tolist(), "refs": [_spread(r) for r in refs]})
+            out.append({"shares": rows.tolist(), "refs": refs})
     return out
-
-
-def _spread(values: np.ndarray) -> tuple[float, float]:
-    """The reference's largest share and its interquartile range."""
-    q25, q75 = np.percentile(values, [25, 75])
-    return float(values.max()), float(q75 - q25)
 
 
 def _flagged(case: dict, s: dict, margin: float, need: int, member_margin: float = MEMBER_MARGIN) -> bool:
@@ -127,9 +121,9 @@ def _flagged(case: dict, s: dict, margin: float, need: int, member_margin: float
     members or more put the share beyond their limit at ``member_margin``; 0: no members flag), its
     other flags as recorded."""
     others = any(not f.startswith(SHARE_FLAGS) for f in case["flags"])
-    (top, iqr), share = s["refs"][0], s["shares"][0]
-    beyond = [v > t + member_margin * q for v, (t, q) in zip(s["shares"][1:], s["refs"][1:])]
-    return others or share > top + margin * iqr or (need > 0 and sum(beyond) >= need)
+    share, ref = s["shares"][0], s["refs"][0]
+    beyond = [v > limit_beyond(r, member_margin) for v, r in zip(s["shares"][1:], s["refs"][1:])]
+    return others or share > limit_beyond(ref, margin) or (need > 0 and sum(beyond) >= need)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from scenescore.experiments.zoo import run
-from scenescore.experiments.zoo_verdicts import catastrophic, flag_kinds, trust_line
+from scenescore.experiments.zoo_verdicts import catastrophic, flag_kinds, read_cases, trust_line
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.outputs import atomic_write_text
 from scenescore.placement import PLACE
@@ -71,10 +71,9 @@ def main() -> None:
     args = ap.parse_args()
     if args.records is not None:
         try:
-            records = json.loads(args.records.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as e:
-            sys.exit(f"--records {args.records}: cannot read the case records: {e}")
-        per_case = records["cases"] if "config" in records else records  # else experiment zoo's
+            per_case = read_cases(args.records)
+        except ValueError as e:
+            sys.exit(f"--records {e}")
         print(trust_line(per_case))
         print(flag_kinds(per_case))
         return

@@ -10,8 +10,11 @@ kinds of flag fired on each. Each case record is a dict with ``t_cm``, ``oracle_
 
 from __future__ import annotations
 
+import json
+import os
 from collections import Counter
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,6 +27,7 @@ __all__ = [
     "good",
     "trust_line",
     "flag_kinds",
+    "read_cases",
 ]
 
 Cases = Sequence[dict[str, Any]]
@@ -47,6 +51,17 @@ def good(cases: Cases) -> np.ndarray:
     t = np.array([c["t_cm"] for c in cases])
     om = float(np.array([c["oracle_t_cm"] for c in cases]).mean())
     return t <= GOOD_ORACLE * max(om, 1e-9)
+
+
+def read_cases(path: str | os.PathLike) -> dict[str, list[dict[str, Any]]]:
+    """The case records of a zoo run, scenario -> cases: ``benchmarks/zoo_configs.py --out``'s
+    ``config-K.json`` or ``scenescore experiment zoo --out``'s ``cases.json``. ValueError naming the file
+    when it cannot be read."""
+    try:
+        records = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{path}: cannot read the case records: {e}") from None
+    return records["cases"] if "config" in records else records  # else experiment zoo's
 
 
 def trust_line(per_case: Mapping[str, Cases]) -> str:

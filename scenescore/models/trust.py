@@ -74,6 +74,7 @@ __all__ = [
     "CAVEAT",
     "SHARE_MARGIN",
     "MEMBER_MARGIN",
+    "limit_beyond",
 ]
 
 # length scales: a category whose data come this close to a bound may be pinned there (a nightstand
@@ -171,7 +172,7 @@ class TrustReference:
     def energy_limit(self) -> float:
         """Energies above this lie beyond the reference: its largest plus :data:`ENERGY_MARGIN` times its
         interquartile range."""
-        return _beyond(np.asarray(self.energies), ENERGY_MARGIN)
+        return limit_beyond(np.asarray(self.energies), ENERGY_MARGIN)
 
     def category_shares(self, category: str, member: int | None = None) -> np.ndarray:
         """The reference shares an object of ``category`` is judged against: its own category's, every
@@ -183,7 +184,7 @@ class TrustReference:
     def share_limit(self, category: str) -> float:
         """Shares above this lie beyond the reference's: its largest plus :data:`SHARE_MARGIN` times its
         interquartile range."""
-        return _beyond(self.category_shares(category), SHARE_MARGIN)
+        return limit_beyond(self.category_shares(category), SHARE_MARGIN)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -255,10 +256,10 @@ def _members_doubt(ref: TrustReference, category: str, shares: np.ndarray) -> tu
     the lowest member's confidence, and how many members put it beyond their reference's shares."""
     refs = [ref.category_shares(category, m) for m in range(len(shares))]
     confidence = min(float(np.mean(r >= v)) for r, v in zip(refs, shares))
-    return confidence, sum(int(v > _beyond(r, MEMBER_MARGIN)) for r, v in zip(refs, shares))
+    return confidence, sum(int(v > limit_beyond(r, MEMBER_MARGIN)) for r, v in zip(refs, shares))
 
 
-def _beyond(values: np.ndarray, margin: float) -> float:
+def limit_beyond(values: np.ndarray, margin: float) -> float:
     """The reference's largest value plus ``margin`` times its interquartile range."""
     q25, q75 = np.percentile(values, [25, 75])
     return float(values.max() + margin * (q75 - q25))
