@@ -14,7 +14,9 @@ computes each placed object's shares, and prints for each margin, and for the ``
 1, 2 or all members, how many catastrophic and how many good placements the whole check flags (the
 other flags as the run recorded them). At the margins the run was made with (``--run-margins SHARE,
 MEMBER``, by default the check's own) it reproduces the run's flags: the script says so, or names the
-placements where it does not.
+placements where it does not. Last it lists the catastrophic placements the check leaves unflagged at
+its own margins, each with how much more the truth costs than the placement, by the mean energy and by
+each member: where every member prefers the placement, nothing the model knows tells it from a good one.
 """
 
 from __future__ import annotations
@@ -83,6 +85,30 @@ def main() -> None:
     ]
     verdict = "yes" if not odd else "no, at " + ", ".join(odd)
     print(f"\nmargins {share_m:g} and {member_m:g} reproduce the run's flags: {verdict}")
+    _misses(per_case, shares, cfg)
+
+
+def _misses(per_case: dict[str, list[dict]], shares: dict[str, list[dict]], cfg: TrainConfig) -> None:
+    """The catastrophic placements the check leaves unflagged at its own margins, each with how much more
+    the truth costs than the placement (the object's share at its truth minus at the placement: the
+    scene's energy difference, the rest of the scene the same), by the mean energy and by each member."""
+    need = 1 if cfg.members > 1 else 0
+    rows = [
+        (name, c, s)
+        for name, cases in per_case.items()
+        for c, s, b in zip(cases, shares[name], catastrophic(cases))
+        if b and not _flagged(c, s, SHARE_MARGIN, need)
+    ]
+    print(f"\ncatastrophic placements the check leaves unflagged: {len(rows)}")
+    if not rows:
+        return
+    members = "" if cfg.members == 1 else " | by each member"
+    print(f"| scenario | seed | object | t (cm) | truth minus placement, mean energy{members} |")
+    print("|---|---:|---|---:|---:|" + ("---|" if members else ""))
+    for name, c, s in rows:
+        d = s["truth_minus_answer"]
+        each = "" if cfg.members == 1 else " | " + ", ".join(f"{v:.2f}" for v in d[1:])
+        print(f"| {name} | {c['seed']} | {c['object']} | {c['t_cm']:.1f} | {d[0]:.2f}{each} |")
 
 
 def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Namespace) -> list[dict]:
@@ -106,13 +132,18 @@ def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Names
                 )
         model = train(train_s, cfg, seed=seed, progress=False, cache=args.cache)
         ref = model.info.trust
-        mine = [c for c in cases if c["seed"] == seed]
-        for case, rec in zip(zoo_cases(sc, test_s, seed), mine, strict=True):
+        mine = [(c, b) for c, b in zip(cases, catastrophic(cases)) if c["seed"] == seed]
+        for case, (rec, bad) in zip(zoo_cases(sc, test_s, seed), mine, strict=True):
             placed = case.scene.with_poses([rec["pose"]], [case.name])
             rows = shares_by_energy(model, placed, [case.name], members=True)[:, 0]
             cat = case.category
             refs = [ref.category_shares(cat)] + [ref.category_shares(cat, k) for k in range(len(rows) - 1)]
-            out.append({"shares": rows.tolist(), "refs": refs})
+            got = {"shares": rows.tolist(), "refs": refs}
+            if bad:  # how much more the truth costs than the placement, by the mean energy and each member
+                truth = case.scene.with_poses([rec["truth"]], [case.name])
+                at_truth = shares_by_energy(model, truth, [case.name], members=True)[:, 0]
+                got["truth_minus_answer"] = (at_truth - rows).tolist()
+            out.append(got)
     return out
 
 
