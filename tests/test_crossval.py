@@ -4,6 +4,7 @@ final model trained on every scene and carrying the pooled figures and their cav
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from test_workflow import SMALL, _pairs  # scenes of two boxes, a tiny config (t
 
 import scenescore as ss
 from scenescore.cli import main
+from scenescore.encoders import FootprintEncoder
 from scenescore.evaluation import CategoryErrors, EvalReport
 from scenescore.learn.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES, fold_splits, folds_for, pooled
 from scenescore.scene import SceneError
@@ -124,3 +126,27 @@ def test_train_on_a_dozen_scenes_trains_on_all_and_carries_the_cross_validated_f
     assert main([*argv, "--folds", "1", "--force", "--quiet"]) == 0
     held = ss.load_model(tmp_path / "h.ckpt").info
     assert held.scenes == 5 and held.validation["folds"] is None and held.validation["scenes"] == 4
+
+
+@pytest.mark.parametrize("members", [1, 2])
+def test_the_final_model_and_the_folds_train_in_one_pool_as_they_would_alone(members):
+    """With jobs, the final model's networks and the folds' train side by side in one pool of worker
+    processes: the checkpoint's weights, trust reference and cross-validated figures are those of the
+    one-process run."""
+    import torch
+
+    scenes = _pairs(6)
+    cfg = replace(SMALL, members=members)
+    given = FootprintEncoder()  # as the command line gives one: training sets the unit it reads sizes in
+    one, two = (
+        ss.train(scenes, cfg, seed=2, force=True, progress=False, log=None, jobs=j, encoder=given)
+        for j in (1, 2)
+    )
+    mine, theirs = one.net.state_dict(), two.net.state_dict()
+    assert mine.keys() == theirs.keys()
+    assert all(torch.equal(mine[k], theirs[k]) for k in mine)
+    assert one.info.trust.to_dict() == two.info.trust.to_dict()
+    assert one.info.validation == two.info.validation and one.info.validation["folds"] == FOLDS
+    assert one.info.final_loss == two.info.final_loss and one.info.scenes == 6
+    assert one.info.tidy.to_dict() == two.info.tidy.to_dict()
+    assert one.encoder.config() == two.encoder.config() != given.config()

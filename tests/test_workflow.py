@@ -75,7 +75,8 @@ def test_the_cli_saves_the_model_the_library_returns(tmp_path, capsys):
     assert model.info.validation is not None and model.info.validation["scenes"] == 6
     assert model.info.validation["folds"] == 3
     assert model.info.tidy is not None and model.info.tidy.scenes == 6 and model.info.trust is not None
-    assert lines[0].startswith("trained on 6 scenes") and lines[0].split(" s ")[1] in printed
+    trained = [s for s in lines if s.startswith("trained on 6 scenes")]
+    assert len(trained) == 1 and trained[0].split(" s ")[1] in printed
     assert [s for s in lines[1:] if "tidy: a move" in s][0] in printed
     report = json.loads((tmp_path / "train_report.json").read_text())
     assert report["tidy"] == model.info.tidy.to_dict() and report["validation"] == model.info.validation
@@ -95,8 +96,9 @@ def test_given_held_out_scenes_are_validated_on_and_every_scene_trained_on(tmp_p
     _same(ss.load_model(tmp_path / "m.ckpt"), model)
 
 
-def test_a_model_that_learned_nothing_is_refused_unless_forced(tmp_path, monkeypatch):
-    from scenescore.learn import workflow
+@pytest.mark.parametrize("folds", [1, None])  # one hold-out; cross-validation (six scenes)
+def test_a_model_that_learned_nothing_is_refused_unless_forced(tmp_path, monkeypatch, folds):
+    from scenescore.learn import crossval, workflow
 
     def flat(scenes, *a, **k):
         model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
@@ -104,6 +106,7 @@ def test_a_model_that_learned_nothing_is_refused_unless_forced(tmp_path, monkeyp
         return model
 
     monkeypatch.setattr(workflow, "train", flat)
+    monkeypatch.setattr(crossval, "train", flat)  # the final model's and the folds' trainings
     with pytest.raises(NothingLearned, match=r"never fell below chance \(1.100\)") as e:
-        ss.train(_pairs(6), SMALL, progress=False, log=None, out=tmp_path / "m.ckpt")
+        ss.train(_pairs(6), SMALL, progress=False, log=None, out=tmp_path / "m.ckpt", folds=folds)
     assert e.value.final_loss == e.value.chance_loss == 1.1 and not list(tmp_path.iterdir())

@@ -116,9 +116,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "--jobs",
         type=JOBS,
         default=None,
-        help="worker processes, one thread each, that an ensemble's members and cross-validation's folds "
-        "train in side by side (default: one per usable core, at most one per member or fold; the model "
-        "does not depend on it)",
+        help="worker processes, one thread each, that the model's trainings run in side by side: the final "
+        "model's and cross-validation's folds', each one network or an ensemble's members (default: one "
+        "per usable core, at most one per training; the model does not depend on it)",
     )
     _add_train_inputs(p)
     _add_train_outputs(p)

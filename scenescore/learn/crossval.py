@@ -4,13 +4,16 @@ With a dozen scenes, holding four out for validation trains the model on two thi
 judges it on four scenes. Instead, :func:`cross_validate` splits the scenes into ``folds`` parts, trains
 one model on all but each part and places that part's objects back with it; the figures of the folds
 are pooled into one report (:func:`pooled`), which stands for the final model trained on every scene
-(:func:`~scenescore.learn.workflow.train_model` does that). It costs ``folds`` more trainings.
+(:func:`~scenescore.learn.workflow.train_model` does that, through :func:`train_and_cross_validate`,
+which trains the final model's networks and the folds' in one pool of worker processes). It costs
+``folds`` more trainings.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
@@ -19,13 +22,22 @@ import torch
 from ..devices import resolve_device
 from ..encoders import Encoder
 from ..evaluation import CategoryErrors, EvalReport, evaluate
+from ..models import ScoreModel
 from ..scene import Scene, SceneError
 from ..workers import map_in_workers
 from .config import TrainConfig
 from .loop import train
-from .members import training_jobs
+from .members import Group, Run, train_groups, training_jobs
 
-__all__ = ["CROSS_VALIDATE_BELOW", "FOLDS", "fold_splits", "cross_validate", "pooled", "folds_for"]
+__all__ = [
+    "CROSS_VALIDATE_BELOW",
+    "FOLDS",
+    "fold_splits",
+    "cross_validate",
+    "train_and_cross_validate",
+    "pooled",
+    "folds_for",
+]
 
 #: data of fewer scenes than this is validated by cross-validation (by default), not by one hold-out
 CROSS_VALIDATE_BELOW = 24
@@ -85,31 +97,61 @@ def cross_validate(
 ) -> EvalReport:
     """Train one model per fold on the other folds' scenes (with ``cfg`` and ``seed``, as the final model
     trains) and place the fold's objects back with it, beside nearest neighbour on the same training
-    scenes; the pooled report of every fold. ``jobs``: worker processes the folds run in, side by side
-    (the report the same whatever their number; None: one per usable core)."""
-    splits = fold_splits(scenes, folds, seed)
-    n = training_jobs(jobs, folds, resolve_device(device))
-    fold = partial(_fold, cfg, encoder, seed, device, progress and n == 1, folds)
-    reports = map_in_workers(
-        fold, list(enumerate(splits)), jobs=n, log=say, bar="folds" if progress else None
-    )
-    return pooled(reports)
+    scenes; the pooled report of every fold. ``jobs``: worker processes the folds' trainings and
+    placements run in, side by side (the report the same whatever their number; None: one per usable
+    core)."""
+    return train_and_cross_validate(
+        scenes,
+        cfg,
+        folds,
+        None,
+        encoder=encoder,
+        seed=seed,
+        device=device,
+        progress=progress,
+        say=say,
+        jobs=jobs,
+    )[1]
 
 
-def _fold(
+def train_and_cross_validate(
+    scenes: Sequence[Scene],
     cfg: TrainConfig,
-    encoder: Encoder | None,
-    seed: int,
-    device: str | torch.device | None,
-    progress: bool,
     folds: int,
-    task: tuple[int, tuple[list[Scene], list[Scene]]],
-    log: Callable[[str], None],
+    final: Run | None,
+    *,
+    encoder: Encoder | None = None,
+    seed: int = 0,
+    device: str | torch.device | None = None,
+    progress: bool = True,
+    say: Callable[[str], None] = print,
+    jobs: int | None = 1,
+) -> tuple[ScoreModel | None, EvalReport]:
+    """:func:`cross_validate`, and with ``final`` (how the final model is trained on every scene) that
+    model too, its networks in one pool of ``jobs`` worker processes with the folds' (:func:`train_groups`):
+    ``(final model or None, pooled report)``. Each model is the one it would be trained alone."""
+    splits = fold_splits(scenes, folds, seed)
+    quiet = Run(encoder=encoder, progress=progress, device=device)
+    groups = [Group(scenes, final, "the final model")] if final is not None else []
+    for f, (train_s, held) in enumerate(splits):
+        say(
+            f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}"
+        )
+        groups.append(Group(train_s, replace(quiet, validation=held), f"fold {f + 1} of {folds}"))
+    models = train_groups(train, groups, cfg, seed, jobs)
+    fold_models = models[1:] if final is not None else models
+    n = training_jobs(jobs, folds, resolve_device(device))
+    place = partial(_place_fold, seed, progress and n == 1)
+    tasks = [(m, held, train_s) for m, (train_s, held) in zip(fold_models, splits)]
+    reports = map_in_workers(place, tasks, jobs=n, log=say, bar="folds" if progress else None)
+    return (models[0] if final is not None else None), pooled(reports)
+
+
+def _place_fold(
+    seed: int, progress: bool, task: tuple[ScoreModel, list[Scene], list[Scene]], log: Callable[[str], None]
 ) -> EvalReport:
-    """Fold ``task = (f, (train, held))``: its model trained on ``train``, ``held``'s objects placed back."""
-    f, (train_s, held) = task
-    log(f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}")
-    model = train(train_s, cfg, encoder=encoder, seed=seed, progress=progress, validation=held, device=device)
+    """A fold's held-out objects placed back with its model ``task = (model, held, train)``."""
+    model, held, train_s = task
     return evaluate(model, held, train_s, seed=seed, progress=progress)
 
 

@@ -38,7 +38,7 @@ from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
 from .size_groups import SizeGroups
 from .training_state import SAVE_EVERY, Progress, Trainer, read_state, state_key, write_state
 
-__all__ = ["train", "fit", "moving_average"]
+__all__ = ["train", "fit", "moving_average", "check_run"]
 
 
 def train(
@@ -87,10 +87,7 @@ def train(
     """
     cfg = config or TrainConfig()
     dev = resolve_device(device)
-    check_training_data(scenes)
-    check_number("train", "save_every", save_every, 1, integer=True)
-    if resume and state is None:
-        raise ConfigError("train: resume=True needs the state file to resume from (state=...)")
+    check_run(scenes, save_every, state, resume)
     if cfg.members > 1:
         run = Run(
             encoder, progress, validation, log_dir, device, cache, state, resume, save_every, keep_state
@@ -115,6 +112,17 @@ def train(
         Path(cached).parent.mkdir(parents=True, exist_ok=True)
         model.save(cached)  # atomic: a worker training the same model at once writes the same file
     return model
+
+
+def check_run(
+    scenes: Sequence[Scene], save_every: int, state: str | os.PathLike | None, resume: bool
+) -> None:
+    """What :func:`train` refuses before it starts: bad training data, a bad ``save_every``, ``resume``
+    without the ``state`` file to resume from."""
+    check_training_data(scenes)
+    check_number("train", "save_every", save_every, 1, integer=True)
+    if resume and state is None:
+        raise ConfigError("train: resume=True needs the state file to resume from (state=...)")
 
 
 def _from_state(state: str | os.PathLike | None, resume: bool) -> bool:

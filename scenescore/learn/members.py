@@ -1,10 +1,11 @@
-"""Training an ensemble (:func:`train_members`): its members, one after another or in worker processes.
+"""Training an ensemble (:func:`train_members`), or several models at once (:func:`train_groups`: a
+final model and its cross-validation's folds): their networks one after another or in worker processes.
 
 Each member is the single model of its own seed (:func:`~scenescore.models.ensemble.member_seed`),
 trained on one torch thread, so its weights do not depend on the process it trains in: with ``jobs``
-of 2 or more the members train side by side in that many worker processes (:mod:`scenescore.workers`)
-and the ensemble is the one a single process trains, bit for bit, in about ``1 / jobs`` of the time on
-free cores. Each worker writes its member to a checkpoint (no pickle) that this process reads back.
+of 2 or more the networks train side by side in that many worker processes (:mod:`scenescore.workers`)
+and each model is the one a single process trains, bit for bit, in about ``1 / jobs`` of the time on
+free cores. Each worker writes its network to a checkpoint (no pickle) that this process reads back.
 """
 
 from __future__ import annotations
@@ -28,10 +29,10 @@ from ..models.ensemble import EnsembleNet, member_seed, members_of
 from ..models.trust import reference
 from ..scene import Scene
 from ..workers import Log, default_jobs, map_in_workers
-from .config import TrainConfig
+from .config import TrainConfig, derive
 from .training_state import SAVE_EVERY
 
-__all__ = ["train_members", "member_state", "training_jobs", "Run"]
+__all__ = ["train_members", "train_groups", "member_state", "training_jobs", "Run", "Group"]
 
 Train = Callable[..., ScoreModel]  # train(scenes, cfg, encoder, seed, progress, validation, ...) as loop's
 
@@ -73,6 +74,16 @@ def training_jobs(jobs: int | None, tasks: int, device: torch.device) -> int:
     return min(default_jobs(device) if jobs is None else jobs, tasks)
 
 
+@dataclass(frozen=True)
+class Group:
+    """One model to train: on ``scenes``, as ``run`` says (its ``validation`` its trust reference), named
+    ``label`` in the log lines of worker processes ("fold 2 of 3"; empty: the model)."""
+
+    scenes: Sequence[Scene]
+    run: Run
+    label: str = ""
+
+
 def train_members(
     one: Train, scenes: Sequence[Scene], cfg: TrainConfig, seed: int, run: Run, jobs: int | None = 1
 ) -> ScoreModel:
@@ -80,25 +91,49 @@ def train_members(
     hands ensembles here) as the single model of its seed (kept in and loaded from the cache as that
     model, resumable from its own state file, :func:`member_state`), in ``jobs`` worker processes
     (:func:`training_jobs`); then their mean energy, its trust reference its own."""
-    dev = resolve_device(run.device)
-    n = training_jobs(jobs, cfg.members, dev)
+    return train_groups(one, [Group(scenes, run)], cfg, seed, jobs)[0]
+
+
+def train_groups(
+    one: Train, groups: Sequence[Group], cfg: TrainConfig, seed: int, jobs: int | None = 1
+) -> list[ScoreModel]:
+    """Each group's model, with ``cfg`` and ``seed``: one network, or an ensemble of ``cfg.members``
+    (:func:`train_members`). Every network of every group trains in one pool of ``jobs`` worker
+    processes (:func:`training_jobs`), so that a final model and its cross-validation's folds train side
+    by side; each network is the one it would be alone, whatever the number of processes."""
+    dev = resolve_device(groups[0].run.device)
     seeds = [member_seed(seed, m) for m in range(cfg.members)]
+    tasks = [(g, m, s) for g in range(len(groups)) for m, s in enumerate(seeds)]
+    n = training_jobs(jobs, len(tasks), dev)
     if n == 1:
-        models = [_member(one, scenes, cfg, run, m, s) for m, s in enumerate(seeds)]
+        nets = [_member(one, groups[g].scenes, cfg, groups[g].run, m, s) for g, m, s in tasks]
     else:
-        if run.progress:
-            print(f"training {cfg.members} members in {n} worker processes", file=sys.stderr)
+        if groups[0].run.progress:
+            what = f"{cfg.members} members" if len(groups) == 1 else f"{len(tasks)} networks"
+            print(f"training {what} in {n} worker processes", file=sys.stderr)
         with tempfile.TemporaryDirectory(prefix="scenescore-members-") as tmp:
-            quiet = replace(run, progress=False)
-            work = partial(_member_in_worker, one, scenes, cfg, quiet, tmp)
-            paths = map_in_workers(work, list(enumerate(seeds)), jobs=n, log=_stderr, bar="members")
-            models = [load(p, encoder=run.encoder, device=dev) for p in paths]
-    return _mean_of(models, cfg, seed, scenes, run.validation)
+            quiet = [replace(g, run=replace(g.run, progress=False)) for g in groups]
+            work = partial(_member_in_worker, one, quiet, cfg, tmp)
+            bar = "members" if len(groups) == 1 else "trainings"
+            paths = map_in_workers(work, tasks, jobs=n, log=_stderr, bar=bar)
+            # each with the encoder its training derived (a footprint encoder reads sizes in the data's
+            # unit), not the one given: a checkpoint read with that would encode the objects otherwise
+            used = [derive(replace(cfg, members=1), g.scenes, g.run.encoder).encoder for g in groups]
+            nets = [load(p, encoder=used[g], device=dev) for p, (g, _, _) in zip(paths, tasks)]
+    k = cfg.members
+    return [
+        nets[g * k]
+        if k == 1
+        else _mean_of(nets[g * k : (g + 1) * k], cfg, seed, grp.scenes, grp.run.validation)
+        for g, grp in enumerate(groups)
+    ]
 
 
 def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, run: Run, m: int, seed: int) -> ScoreModel:
-    """Member ``m`` of the ensemble of ``cfg``: the single model of ``seed``, trained in this process."""
-    if run.progress:
+    """Member ``m`` of the ensemble of ``cfg`` (the whole model for one network): the single model of
+    ``seed``, trained in this process."""
+    alone = cfg.members == 1
+    if run.progress and not alone:
         print(f"member {m + 1} of {cfg.members} (seed {seed})", file=sys.stderr)
     return one(
         scenes,
@@ -107,10 +142,10 @@ def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, run: Run, m: 
         seed,
         run.progress,
         run.validation,
-        None if run.log_dir is None else Path(run.log_dir) / f"member{m}",
+        None if run.log_dir is None or alone else Path(run.log_dir) / f"member{m}",
         run.device,
         run.cache,
-        None if run.state is None else member_state(run.state, m),
+        None if run.state is None or alone else member_state(run.state, m),
         run.resume,
         run.save_every,
         run.keep_state,
@@ -118,14 +153,18 @@ def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, run: Run, m: 
 
 
 def _member_in_worker(
-    one: Train, scenes: Sequence[Scene], cfg: TrainConfig, run: Run, tmp: str, task: tuple[int, int], log: Log
+    one: Train, groups: Sequence[Group], cfg: TrainConfig, tmp: str, task: tuple[int, int, int], log: Log
 ) -> str:
-    """In a worker: member ``task = (m, seed)`` trained and written to a checkpoint in ``tmp``; its path."""
-    m, seed = task
-    model = _member(one, scenes, cfg, run, m, seed)
-    path = str(Path(tmp) / f"member{m}.ckpt")
+    """In a worker: member ``m`` of group ``g`` (``task = (g, m, seed)``) trained and written to a
+    checkpoint in ``tmp``; its path."""
+    g, m, seed = task
+    grp = groups[g]
+    model = _member(one, grp.scenes, cfg, grp.run, m, seed)
+    path = str(Path(tmp) / f"group{g}-member{m}.ckpt")
     model.save(path)
-    log(f"member {m + 1} of {cfg.members} (seed {seed}) trained in {model.info.seconds or 0:.0f} s")
+    who = f"member {m + 1} of {cfg.members} (seed {seed})" if cfg.members > 1 else ""
+    name = " ".join(x for x in (grp.label, who) if x) or "the model"
+    log(f"{name} trained in {model.info.seconds or 0:.0f} s")
     return path
 
 

@@ -26,11 +26,11 @@ from ..plot import training_figure
 from ..scene import Scene, write_jsonl
 from ..tidying import calibrate, count_weight
 from .config import TrainConfig
-from .crossval import cross_validate, folds_for
+from .crossval import folds_for, train_and_cross_validate
 from .data import VALIDATION_FRACTION, check_training_data, split_validation
 from .logs import log_validation
-from .loop import train
-from .members import member_state
+from .loop import check_run, train
+from .members import Run, member_state
 from .training_state import SAVE_EVERY
 
 __all__ = ["NothingLearned", "holdout", "train_model"]
@@ -111,8 +111,10 @@ def train_model(
     held-out placements. ``log``: where the summary lines go (None: nowhere); ``source``: where
     ``scenes`` were read from, named in the line that says how to evaluate the model again.
     ``log_dir``, ``device``, ``progress``, ``encoder``, ``state``, ``resume``, ``save_every``, ``jobs``: as
-    for :func:`~scenescore.learn.loop.train` (``jobs`` also runs the folds side by side); the training
-    state is kept until the checkpoint is written.
+    for :func:`~scenescore.learn.loop.train` (with folds, ``jobs`` worker processes train the final
+    model's networks and the folds' side by side in one pool:
+    :func:`~scenescore.learn.crossval.train_and_cross_validate`); the training state is kept until the
+    checkpoint is written.
     """
     cfg = config or TrainConfig()
     say: Log = log or (lambda line: None)
@@ -120,21 +122,41 @@ def train_model(
     check_training_data(scenes)
     k = folds_for(len(scenes), folds, fraction, heldout is not None)
     train_s, held = (list(scenes), []) if k else holdout(scenes, fraction, heldout, seed)
-    model = train(
-        train_s,
-        cfg,
-        encoder=encoder,
-        seed=seed,
-        progress=progress,
-        validation=held,
-        log_dir=log_dir,
-        device=device,
-        state=state,
-        resume=resume,
-        save_every=save_every,
-        keep_state=True,  # a run killed before the checkpoint is written resumes with no more training
-        jobs=jobs,
-    )
+    # keep_state: a run killed before the checkpoint is written resumes with no more training
+    run = Run(encoder, progress, held, log_dir, device, None, state, resume, save_every, keep_state=True)
+    if k:  # the final model and the folds' models train side by side
+        say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
+        check_run(scenes, save_every, state, resume)
+        final, folded = train_and_cross_validate(
+            scenes,
+            cfg,
+            k,
+            run,
+            encoder=encoder,
+            seed=seed,
+            device=device,
+            progress=progress,
+            say=say,
+            jobs=jobs,
+        )
+        assert final is not None
+        model = final
+    else:
+        model = train(
+            train_s,
+            cfg,
+            encoder=encoder,
+            seed=seed,
+            progress=progress,
+            validation=held,
+            log_dir=log_dir,
+            device=device,
+            state=state,
+            resume=resume,
+            save_every=save_every,
+            keep_state=True,
+            jobs=jobs,
+        )
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
     took = f"in {info.seconds:.0f} s"
@@ -155,11 +177,7 @@ def train_model(
         if heldout is None and out_path is not None:
             _write_heldout(held, out_path, record, seed, source, say)
     elif k:
-        say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
-        ev = cross_validate(
-            scenes, cfg, k, encoder=encoder, seed=seed, device=device, progress=progress, say=say, jobs=jobs
-        )
-        examples = _adopt(model, ev, record, log_dir, cfg, say)
+        examples = _adopt(model, folded, record, log_dir, cfg, say)
     if plot is not None:
         training_figure(info.history or [], info.chance_loss, examples, plot)
         say(f"wrote {plot}")
