@@ -100,51 +100,40 @@ def cross_validate(
     scenes; the pooled report of every fold. ``jobs``: worker processes the folds' trainings and
     placements run in, side by side (the report the same whatever their number; None: one per usable
     core)."""
-    return train_and_cross_validate(
-        scenes,
-        cfg,
-        folds,
-        None,
-        encoder=encoder,
-        seed=seed,
-        device=device,
-        progress=progress,
-        say=say,
-        jobs=jobs,
-    )[1]
+    run = Run(encoder=encoder, progress=progress, device=device)
+    return train_and_cross_validate(scenes, cfg, folds, run, seed=seed, say=say, jobs=jobs, final=False)[1]
 
 
 def train_and_cross_validate(
     scenes: Sequence[Scene],
     cfg: TrainConfig,
     folds: int,
-    final: Run | None,
+    run: Run,
     *,
-    encoder: Encoder | None = None,
     seed: int = 0,
-    device: str | torch.device | None = None,
-    progress: bool = True,
     say: Callable[[str], None] = print,
     jobs: int | None = 1,
+    final: bool = True,
 ) -> tuple[ScoreModel | None, EvalReport]:
-    """:func:`cross_validate`, and with ``final`` (how the final model is trained on every scene) that
-    model too, its networks in one pool of ``jobs`` worker processes with the folds' (:func:`train_groups`):
-    ``(final model or None, pooled report)``. Each model is the one it would be trained alone."""
+    """:func:`cross_validate`, the folds trained as ``run`` says (its encoder, device and progress), and
+    with ``final`` the final model on every scene too, trained as ``run`` says in full (its state file,
+    log, ...), its networks in one pool of ``jobs`` worker processes with the folds'
+    (:func:`train_groups`): ``(final model or None, pooled report)``. Each model is the one it would be
+    trained alone."""
     splits = fold_splits(scenes, folds, seed)
-    quiet = Run(encoder=encoder, progress=progress, device=device)
-    groups = [Group(scenes, final, "the final model")] if final is not None else []
+    fold_run = Run(encoder=run.encoder, progress=run.progress, device=run.device)
+    groups = [Group(scenes, run, "the final model")] if final else []
     for f, (train_s, held) in enumerate(splits):
         say(
             f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}"
         )
-        groups.append(Group(train_s, replace(quiet, validation=held), f"fold {f + 1} of {folds}"))
+        groups.append(Group(train_s, replace(fold_run, validation=held), f"fold {f + 1} of {folds}"))
     models = train_groups(train, groups, cfg, seed, jobs)
-    fold_models = models[1:] if final is not None else models
-    n = training_jobs(jobs, folds, resolve_device(device))
-    place = partial(_place_fold, seed, progress and n == 1)
-    tasks = [(m, held, train_s) for m, (train_s, held) in zip(fold_models, splits)]
-    reports = map_in_workers(place, tasks, jobs=n, log=say, bar="folds" if progress else None)
-    return (models[0] if final is not None else None), pooled(reports)
+    n = training_jobs(jobs, folds, resolve_device(run.device))
+    place = partial(_place_fold, seed, run.progress and n == 1)
+    tasks = [(m, held, train_s) for m, (train_s, held) in zip(models[-folds:], splits)]
+    reports = map_in_workers(place, tasks, jobs=n, log=say, bar="folds" if run.progress else None)
+    return (models[0] if final else None), pooled(reports)
 
 
 def _place_fold(

@@ -127,18 +127,7 @@ def train_model(
     if k:  # the final model and the folds' models train side by side
         say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
         check_run(scenes, save_every, state, resume)
-        final, folded = train_and_cross_validate(
-            scenes,
-            cfg,
-            k,
-            run,
-            encoder=encoder,
-            seed=seed,
-            device=device,
-            progress=progress,
-            say=say,
-            jobs=jobs,
-        )
+        final, folded = train_and_cross_validate(scenes, cfg, k, run, seed=seed, say=say, jobs=jobs)
         assert final is not None
         model = final
     else:
