@@ -150,3 +150,23 @@ def test_the_final_model_and_the_folds_train_in_one_pool_as_they_would_alone(mem
     assert one.info.final_loss == two.info.final_loss and one.info.scenes == 6
     assert one.info.tidy.to_dict() == two.info.tidy.to_dict()
     assert one.encoder.config() == two.encoder.config() != given.config()
+
+
+def test_a_cross_validated_model_keeps_its_log_where_it_was_asked_for(tmp_path):
+    """The final model of a cross-validated training (one network) logs its training loss to ``log_dir``
+    itself, as a held-out one does; an ensemble's members each to their own folder in it."""
+    pytest.importorskip("tensorboard")
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    def tags(folder):
+        acc = EventAccumulator(str(folder))
+        acc.Reload()
+        return set(acc.Tags()["scalars"])
+
+    ss.train(_pairs(6), SMALL, seed=2, force=True, progress=False, log=None, log_dir=tmp_path / "one")
+    assert "train/loss" in tags(tmp_path / "one")
+    two = replace(SMALL, members=2)
+    ss.train(_pairs(6), two, seed=2, force=True, progress=False, log=None, log_dir=tmp_path / "two")
+    assert "train/loss" in tags(tmp_path / "two" / "member0") and "train/loss" in tags(
+        tmp_path / "two" / "member1"
+    )

@@ -135,14 +135,23 @@ def _cli(data: Path, out: Path, *extra: str) -> list[str]:
     ]  # fmt: skip
 
 
-def test_sigkill_then_resume_writes_the_uninterrupted_weights(scenes, tmp_path):
+@pytest.mark.parametrize("folds", [False, True])  # --val 0; six scenes cross-validated, in workers
+def test_sigkill_then_resume_writes_the_uninterrupted_weights(scenes, tmp_path, folds):
     few = scenes[:6]  # tidying is calibrated on every scene after training: few keep the test short
     data = tmp_path / "dining.jsonl"
     ss.write_jsonl(data, few)
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     out = tmp_path / "model.ckpt"
     state = tmp_path / "model.ckpt.state"  # beside --out by default
-    proc = subprocess.Popen(_cli(data, out), env=env, stderr=subprocess.DEVNULL)
+
+    def cli(*extra: str) -> list[str]:
+        argv = _cli(data, out, *extra)
+        if folds:  # the final model's state is written by the worker process that trains it
+            i = argv.index("--val")
+            argv[i : i + 2] = ["--jobs", "2"]
+        return argv
+
+    proc = subprocess.Popen(cli(), env=env, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
         while not state.exists() and proc.poll() is None and time.monotonic() < deadline:
@@ -152,7 +161,7 @@ def test_sigkill_then_resume_writes_the_uninterrupted_weights(scenes, tmp_path):
     finally:
         proc.wait(timeout=30)
     assert proc.returncode == -signal.SIGKILL and state.exists() and not out.exists()
-    done = subprocess.run(_cli(data, out, "--resume"), env=env, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(cli("--resume"), env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert not state.exists()  # removed once the checkpoint is written
     _same_weights(load(out).net, train(few, CFG, seed=SEED, progress=False).net)
