@@ -27,10 +27,10 @@ from ..scene import Scene, write_jsonl
 from ..tidying import calibrate, count_weight
 from .config import TrainConfig
 from .crossval import folds_for, train_and_cross_validate
-from .data import VALIDATION_FRACTION, check_training_data, split_validation
+from .data import VALIDATION_FRACTION, split_validation
 from .logs import log_validation
 from .loop import check_run, train
-from .members import Run, member_state
+from .members import Group, Run, member_state, train_groups
 from .training_state import SAVE_EVERY
 
 __all__ = ["NothingLearned", "holdout", "train_model"]
@@ -119,33 +119,18 @@ def train_model(
     cfg = config or TrainConfig()
     say: Log = log or (lambda line: None)
     out_path = None if out is None else Path(out)
-    check_training_data(scenes)
+    check_run(scenes, save_every, state, resume)
     k = folds_for(len(scenes), folds, fraction, heldout is not None)
     train_s, held = (list(scenes), []) if k else holdout(scenes, fraction, heldout, seed)
     # keep_state: a run killed before the checkpoint is written resumes with no more training
     run = Run(encoder, progress, held, log_dir, device, None, state, resume, save_every, keep_state=True)
     if k:  # the final model and the folds' models train side by side
         say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
-        check_run(scenes, save_every, state, resume)
         final, folded = train_and_cross_validate(scenes, cfg, k, run, seed=seed, say=say, jobs=jobs)
         assert final is not None
         model = final
     else:
-        model = train(
-            train_s,
-            cfg,
-            encoder=encoder,
-            seed=seed,
-            progress=progress,
-            validation=held,
-            log_dir=log_dir,
-            device=device,
-            state=state,
-            resume=resume,
-            save_every=save_every,
-            keep_state=True,
-            jobs=jobs,
-        )
+        model = train_groups(train, [Group(train_s, run)], cfg, seed, jobs)[0]
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
     took = f"in {info.seconds:.0f} s"
