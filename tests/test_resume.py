@@ -140,7 +140,8 @@ def test_sigkill_then_resume_writes_the_uninterrupted_weights(scenes, tmp_path, 
     few = scenes[:6]  # tidying is calibrated on every scene after training: few keep the test short
     data = tmp_path / "dining.jsonl"
     ss.write_jsonl(data, few)
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    # TMPDIR: the killed run cannot remove its temporary folders; they go with the test's
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "TMPDIR": str(tmp_path)}
     out = tmp_path / "model.ckpt"
     state = tmp_path / "model.ckpt.state"  # beside --out by default
 
