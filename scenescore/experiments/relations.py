@@ -125,9 +125,9 @@ def _models(
     whole = None
     if WHOLE in chosen:
         t0 = time.perf_counter()
-        whole = train(
-            whole_scene_training(sizes, seed, relations), config, seed=seed, device=device, cache=cache
-        )
+        scenes = whole_scene_training(sizes, seed, relations)
+        # no bar of its own, as for the relation models: the experiment's bar counts (seed, size) pairs
+        whole = train(scenes, config, seed=seed, progress=False, device=device, cache=cache)
         seconds[WHOLE] += time.perf_counter() - t0
     return models, whole, seconds
 

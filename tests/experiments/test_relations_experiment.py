@@ -116,8 +116,9 @@ def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
     table = (out / "table.md").read_text()
     assert "trained again with the next member seed, at most 0 times" in table
     assert "each try is the best of 3 particles" in table and "draws up to 600 uniform" in table
-    printed = capsys.readouterr().out
-    assert "| Rejection (uniform) |" in printed and "N=3" in printed
+    printed = capsys.readouterr()
+    assert "| Rejection (uniform) |" in printed.out and "N=3" in printed.out
+    assert "train:" not in printed.err  # --quiet: no model's training bar, the whole-scene one's included
     assert main(["experiment", "relations", "--sizes", "1,2", "--out", str(out)]) == 2
     assert "--sizes" in capsys.readouterr().err
     with pytest.raises(SystemExit):
