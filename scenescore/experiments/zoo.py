@@ -25,10 +25,10 @@ from typing import Any, cast
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..evaluation import MissingCase, assignment, case_errors
+from ..evaluation import MissingCase
 from ..learn import TrainConfig, split_validation, train
 from ..models import ScoreModel
-from ..models.layout import BOUND_TOL, touching_bound
+from ..models.layout import BOUND_TOL
 from ..models.trust import energy_per_object
 from ..placement import covering, place_many
 from ..scenarios import get
@@ -38,7 +38,15 @@ from ..scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
 from ..tasks import Codec, Sweep, Task, run_tasks
 from .report import Row, format_table
-from .zoo_verdicts import CATASTROPHIC_CM, CATASTROPHIC_ORACLE, GOOD_ORACLE, catastrophic, good, trust_line
+from .zoo_verdicts import (
+    CATASTROPHIC_CM,
+    CATASTROPHIC_ORACLE,
+    GOOD_ORACLE,
+    case_records,
+    catastrophic,
+    good,
+    trust_line,
+)
 
 __all__ = [
     "zoo_cases",
@@ -206,60 +214,11 @@ def run_one(
     records: list[dict[str, Any]] = []
     worst: tuple[MissingCase, Scene, float] | None = None
     for k, (c, p) in enumerate(zip(cases, placed)):
-        got, w = _case_records(sc, c, p, energies[k], energies[len(cases) + k], tol, seed)
+        got, w = case_records(sc, c, p, energies[k], energies[len(cases) + k], tol, seed)
         records += got
         if worst is None or w[2] > worst[2]:
             worst = w
     return {"cases": records, "worst": worst, "seconds": time.perf_counter() - t0}
-
-
-def _case_records(
-    sc: Any, c: MissingCase, p: Scene, e_placed: float, e_truth: float, tol: float, seed: int
-) -> tuple[list[dict[str, Any]], tuple[MissingCase, Scene, float]]:
-    """One record per object the case removed, and its worst ``(case, placed scene, t)``. The placed
-    poses and the oracle's are each matched to the truths by :func:`assignment` (the identity for one
-    object); a record's ``placed`` names the object whose placement was matched to its truth, when
-    the case removed several. ``e_placed``, ``e_truth``: the energy per object at the placement and
-    at the truth (every removed object at its true pose)."""
-    parts = c.singles()
-    cats = [q.category for q in parts]
-    unplaced = [q.name for q in parts if p[q.name].pose is None]
-    if unplaced:
-        raise SceneError(f"zoo: placement left {unplaced} without a pose")
-    poses = [cast(Pose, p[q.name].pose) for q in parts]
-    match = assignment(poses, [q.truth for q in parts], cats)
-    oracle = sc.oracle_many(c.scene, c.names)
-    by_oracle = assignment(oracle, [q.truth for q in parts], cats)
-    records: list[dict[str, Any]] = []
-    worst: tuple[MissingCase, Scene, float] | None = None
-    for i, q in enumerate(parts):
-        src, pose = parts[match[i]].name, poses[match[i]]
-        sym = q.category in sc.symmetric
-        t, r = case_errors(q, pose, sym)
-        ot, orr = case_errors(q, oracle[by_oracle[i]], sym)
-        if worst is None or t > worst[2]:  # drawn as the placed object against the truth it matched
-            worst = (q if src == q.name else MissingCase(c.scene, src, q.category, q.truth), p, t)
-        flags = list(p.meta.get("placement", {}).get(src, {}).get("flags", []))
-        rec = {
-            "seed": seed,
-            "object": q.name,
-            "t_cm": t,
-            "R_deg": r,
-            "oracle_t_cm": ot,
-            "oracle_R_deg": orr,
-            "at_bound": touching_bound(c.scene[src], pose, c.scene.bounds, tol) is not None,
-            "flagged": bool(flags),
-            "flags": flags,
-            "energy": e_placed,
-            "energy_truth": e_truth,
-            "pose": list(pose),
-            "truth": list(q.truth),
-        }
-        if c.others:
-            rec["placed"] = src
-        records.append(rec)
-    assert worst is not None
-    return records, worst
 
 
 def _pair(
