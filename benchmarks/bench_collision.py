@@ -31,8 +31,8 @@ import numpy as np
 import torch
 
 from scenescore.costs import HingeCollision
-from scenescore.exact import overlap_depth_exceeds, shapely_core
-from scenescore.problem import Problem
+from scenescore.geometry.exact import overlap_depth_exceeds, shapely_core
+from scenescore.problem.problem import Problem
 from scenescore.scenarios.tv import TVScenario
 
 

@@ -15,12 +15,13 @@ from dataclasses import asdict
 
 import torch
 
-from scenescore.devices import generator, resolve_device
 from scenescore.encoders import FootprintEncoder
+from scenescore.geometry.poses import uniform_init
 from scenescore.learn import TrainConfig, train
 from scenescore.models import ScoreModel
-from scenescore.sampling import LangevinConfig, langevin, uniform_init
+from scenescore.runtime.devices import generator, resolve_device
 from scenescore.scenarios import DiningScenario
+from scenescore.solvers.kernel import LangevinConfig, langevin
 
 
 def throughput(model: ScoreModel, n: int, b: int, steps: int = 20) -> float:

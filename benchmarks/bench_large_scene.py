@@ -24,7 +24,7 @@ from pathlib import Path
 from scenescore.learn import TrainConfig, train
 from scenescore.scenarios import DiningScenario
 from scenescore.scenarios.dining import CATALOGUE
-from scenescore.scene import Scene, SceneObject
+from scenescore.scene.scene import Scene, SceneObject
 
 CELL = 0.5  # m, one place setting per cell
 # (category, offset in the cell, heading): disjoint footprints, all inside the cell

@@ -34,8 +34,8 @@ import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.learn import TrainConfig, train
 from scenescore.models import ScoreModel
-from scenescore.placement import place, place_many
-from scenescore.threads import free_cores
+from scenescore.planning.placement import place, place_many
+from scenescore.runtime.cores import free_cores
 
 # a CPU-bound process that stops by itself when the benchmark is gone (even if it was killed)
 SPIN = "import os, sys\nparent = int(sys.argv[1])\nwhile os.getppid() == parent:\n    sum(range(200_000))\n"

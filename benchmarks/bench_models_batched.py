@@ -32,9 +32,9 @@ from torch import Tensor, nn
 from torch.func import functional_call, grad, stack_module_state, vmap
 from torch.profiler import ProfilerActivity, profile
 
-from scenescore.devices import resolve_device
 from scenescore.learn import TrainConfig
 from scenescore.models.network import EnergyConfig, EnergyNet
+from scenescore.runtime.devices import resolve_device
 
 
 class Plain(nn.Module):

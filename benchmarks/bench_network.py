@@ -8,7 +8,7 @@
 2. A large population's gradient for the poses taken in pieces of about ``CACHE_EDGES`` edges, each
    forward and backward at once (what sampling gets, ``weight_grads=False``), against the path that
    also gives the weights their gradients (``weight_grads=True``: one pass, or, for a batch over one
-   chunk of ``scenescore.memory.CHUNK_BYTES`` as every batch here is, chunks that run the forward pass
+   chunk of ``scenescore.runtime.memory.CHUNK_BYTES`` as every batch here is, chunks that run the forward pass
    twice): pose sets per second for ``--population`` pose sets of 4 to 12 objects and a fifth as many
    of 20 and 28, the ratio, and the largest difference between the two gradients.
 3. The energy without a gradient (screening candidates), each message layer working in place in one

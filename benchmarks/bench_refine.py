@@ -24,7 +24,7 @@ import torch
 
 from scenescore.experiments.compose import langevin_options, train_energy, tv_problem
 from scenescore.models import ScoreModel, load
-from scenescore.problem import Problem
+from scenescore.problem.problem import Problem
 from scenescore.scenarios.tv import TVScenario
 from scenescore.solvers import Result, Solver, get
 

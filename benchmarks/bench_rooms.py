@@ -34,9 +34,9 @@ import torch
 
 import scenescore as ss
 from scenescore.learn import TrainConfig
+from scenescore.runtime.threads import thread_budget
 from scenescore.scenarios.zoo.classroom import ClassroomScenario
-from scenescore.scene import Scene
-from scenescore.threads import thread_budget
+from scenescore.scene.scene import Scene
 
 MISSING = 3
 

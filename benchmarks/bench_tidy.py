@@ -8,7 +8,7 @@ imports and the plot included) ``--runs`` times as it is and as many times with 
 median and max wall seconds of each, the median of the paired ratios, and whether every run wrote the same
 ``tidy.json`` to the byte. With ``--threads 1`` tidy places the moved objects after its selection; by
 default, on a machine with a second core to spare, it places the set chosen so far on that core while the
-selection's last rounds go on (:class:`scenescore.threads.Ahead`). The model (``--model``; default: trained
+selection's last rounds go on (:class:`scenescore.runtime.ahead.Ahead`). The model (``--model``; default: trained
 first as the README does, 48 generated dining scenes and 150 iterations) is not timed.
 """
 

@@ -24,7 +24,7 @@ import numpy as np
 from shapely.geometry import Polygon
 
 import scenescore as ss
-from scenescore.scene import Scene, SceneObject
+from scenescore.scene.scene import Scene, SceneObject
 from scenescore.vision import DEFAULT_LOOKS, DEFAULT_PPM
 from scenescore.vision.graph import graphs_from_renders
 

@@ -23,7 +23,7 @@ import torch
 from scenescore.learn import TrainConfig, train
 from scenescore.models.trust import energy_per_object
 from scenescore.scenarios import get
-from scenescore.scene import Scene
+from scenescore.scene.scene import Scene
 
 
 def far_end(scene: Scene, gap: float) -> list[Scene]:

@@ -40,7 +40,7 @@ from scenescore.experiments.compose import REFINE, correct_samples, langevin_opt
 from scenescore.learn import TrainConfig, train
 from scenescore.models import ScoreModel, load
 from scenescore.scenarios.tv import TVScenario
-from scenescore.scene import Scene
+from scenescore.scene.scene import Scene
 from scenescore.solvers import get, solve
 
 

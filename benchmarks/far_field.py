@@ -25,7 +25,7 @@ import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.learn import RAW_EDGES, TrainConfig, train
 from scenescore.models.layout import BOUND_TOL, touching_bound
-from scenescore.placement import place_many, placement_problem
+from scenescore.planning.placement import place_many, placement_problem
 
 CONFIGS = {
     "linear offsets, 0.1 m (old)": TrainConfig(

@@ -20,9 +20,9 @@ import time
 import numpy as np
 import torch
 
-from scenescore.evaluation import make_cases
+from scenescore.evaluation.cases import make_cases
 from scenescore.learn import TrainConfig
-from scenescore.placement import SceneScorePlacer
+from scenescore.planning.placement import SceneScorePlacer
 from scenescore.scenarios import DiningScenario, OrderingScenario
 
 

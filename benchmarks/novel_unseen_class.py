@@ -18,8 +18,8 @@ import numpy as np
 import torch
 
 import scenescore as ss
-from scenescore.evaluation import make_cases
-from scenescore.placement import SceneScorePlacer
+from scenescore.evaluation.cases import make_cases
+from scenescore.planning.placement import SceneScorePlacer
 from scenescore.scenarios import OrderingScenario
 
 

@@ -24,7 +24,7 @@ import torch
 import scenescore as ss
 from scenescore.experiments.zoo import place_back, zoo_cases
 from scenescore.learn import TrainConfig, split_validation, train
-from scenescore.placement import place_many
+from scenescore.planning.placement import place_many
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -72,7 +72,7 @@ def readme_model(folder: Path) -> Path:
 
 
 def run(args: argparse.Namespace, folder: Path) -> None:
-    from scenescore.threads import thread_budget
+    from scenescore.runtime.threads import thread_budget
 
     if args.what == "tidy":  # as the command runs it: torch's own threads (tidy chooses its own)
         from scenescore.cli import main

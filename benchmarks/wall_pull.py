@@ -19,13 +19,13 @@ import json
 
 import torch
 
-from scenescore.evaluation import case_errors
+from scenescore.evaluation.cases import case_errors
 from scenescore.experiments.zoo import place_back, zoo_cases
 from scenescore.learn import TrainConfig, train
 from scenescore.models import ScoreModel
 from scenescore.models.network import WALLS
 from scenescore.scenarios import get
-from scenescore.scene import Scene
+from scenescore.scene.scene import Scene
 
 
 def energy(model: ScoreModel, scene: Scene, walls: bool) -> float:

@@ -17,7 +17,7 @@ every config and later runs: an ensemble's first member is the single model of i
 ``--configs '[{"members": 3}, {}]'`` trains the single models once. ``--train-scenes 12``: the zoo's
 small-data variant.
 ``--place`` changes placement's options for every config (a JSON object of ``LangevinOptions`` fields
-over ``scenescore.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
+over ``scenescore.planning.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
 case's record as ``DIR/config-K.json``; ``--records DIR/config-K.json`` prints that pooled trust line
 from such a file again, without running anything, and how many catastrophic and good placements each
 kind of flag fired on; ``--records OUT/cases.json`` does the same for a ``scenescore experiment zoo --out
@@ -36,9 +36,9 @@ from pathlib import Path
 from scenescore.experiments.zoo import run
 from scenescore.experiments.zoo_verdicts import catastrophic, flag_kinds, read_cases, trust_line
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
-from scenescore.outputs import atomic_write_text
-from scenescore.placement import PLACE
+from scenescore.planning.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
+from scenescore.scene.outputs import atomic_write_text
 
 
 def main() -> None:

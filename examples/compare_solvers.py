@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from scenescore.outputs import atomic_write_text
-from scenescore.problem_file import load_problem
+from scenescore.problem.files import load_problem
+from scenescore.scene.outputs import atomic_write_text
 from scenescore.solvers.compare import compare
 
 HERE = Path(__file__).parent

@@ -39,9 +39,9 @@ from scenescore.experiments.relation_models import train_config as relations_tra
 from scenescore.experiments.relation_models import train_relation
 from scenescore.learn import TrainConfig, train
 from scenescore.models import load
-from scenescore.outputs import atomic_write_text
-from scenescore.provenance import git_commit
+from scenescore.runtime.provenance import git_commit
 from scenescore.scenarios import get
+from scenescore.scene.outputs import atomic_write_text
 
 FOLDER = Path(scenescore.models.__file__).resolve().parent / "pretrained"
 INDEX_VERSION = 1

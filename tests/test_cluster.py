@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from scenescore.cli import main
-from scenescore.cluster import SlurmConfig, SubmititExecutor, TasksFailed
-from scenescore.tasks import Sweep, Task, run_tasks
+from scenescore.experiments.cluster import SlurmConfig, SubmititExecutor, TasksFailed
+from scenescore.experiments.tasks import Sweep, Task, run_tasks
 
 pytest.importorskip("submitit")
 

@@ -13,9 +13,16 @@ from test_workflow import SMALL, _pairs  # scenes of two boxes, a tiny config (t
 import scenescore as ss
 from scenescore.cli import main
 from scenescore.encoders import FootprintEncoder
-from scenescore.evaluation import CategoryErrors, EvalReport
-from scenescore.learn.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES, fold_splits, folds_for, pooled
-from scenescore.scene import SceneError
+from scenescore.evaluation.report import CategoryErrors, EvalReport
+from scenescore.scene.scene import SceneError
+from scenescore.workflow.crossval import (
+    CROSS_VALIDATE_BELOW,
+    FOLDS,
+    MIN_SCENES,
+    fold_splits,
+    folds_for,
+    pooled,
+)
 
 
 def test_every_scene_is_held_out_exactly_once_and_trained_on_by_the_other_folds():

@@ -25,9 +25,9 @@ from torch.utils._pytree import tree_flatten
 import scenescore as ss
 from scenescore.cli import main
 from scenescore.costs import Bounds, CostError, Displacement, HingeCollision, LearnedEnergy, ReachLimit
-from scenescore.devices import draw, generator, resolve_device
 from scenescore.errors import ConfigError
-from scenescore.sampling import uniform_init
+from scenescore.geometry.poses import uniform_init
+from scenescore.runtime.devices import draw, generator, resolve_device
 
 HAS_CUDA = torch.cuda.is_available()
 NO_CUDA = f"CUDA is not available on this machine (torch {torch.__version__})"
@@ -266,9 +266,9 @@ def test_device_cpu_is_the_default(files, capsys):
 def _run(device: str, scenes: list[ss.Scene], tmp: Path) -> dict[str, Any]:
     """Train, save and load, place, and solve with every solver on ``device``: the numbers."""
     from scenescore.learn import TrainConfig, heldout_loss, train
-    from scenescore.placement import PLACE, place
-    from scenescore.sampling import PLACEMENT
+    from scenescore.planning.placement import PLACE, place
     from scenescore.solvers.compare import compare
+    from scenescore.solvers.kernel import PLACEMENT
 
     out: dict[str, Any] = {}
     cfg = TrainConfig(iterations=2, batch_scenes=2, negatives=2, perturbed=1, chain_steps=2)

@@ -54,7 +54,7 @@ def test_costs_relation_problem_is_the_example_and_loads(tmp_path):
     solves that file), and loads as written with the shipped relation models."""
     import yaml
 
-    from scenescore.problem_file import load_problem
+    from scenescore.problem.files import load_problem
 
     blocks = re.findall(r"```yaml\n(.*?)```", (DOCS / "costs.md").read_text(), flags=re.S)
     shown = [b for b in blocks if "relation-left_of" in b]

@@ -10,12 +10,12 @@ from dataclasses import replace
 import pytest
 
 import scenescore as ss
-from scenescore.evaluation import CategoryErrors, EvalReport, evaluate
+from scenescore.evaluation.report import CategoryErrors, EvalReport, evaluate
 from scenescore.learn import NetworkConfig, TrainConfig
-from scenescore.learn.workflow import train_model
 from scenescore.models import Caveats, ModelInfo
-from scenescore.placement import PLACE
+from scenescore.planning.placement import PLACE
 from scenescore.scenarios import get
+from scenescore.workflow.train import train_model
 
 # placement cut short: the flags, not the poses, are under test
 QUICK = replace(PLACE, particles=8, candidates=64, chain=replace(PLACE.chain, steps=8, final_descent=4))

@@ -38,7 +38,7 @@ def test_compose_costs_example(workdir, capsys):
 def test_yaml_example_solves_and_compares(workdir):
     import compare_solvers
 
-    from scenescore.problem_file import load_problem
+    from scenescore.problem.files import load_problem
     from scenescore.solvers import solve
 
     lp = load_problem(workdir / "place_bowl.yaml")
@@ -63,7 +63,7 @@ def test_relations_example_solves_with_the_shipped_relation_models():
     """examples/relations.yaml: three shipped relation models bound to five objects, collision and
     bounds; its solve is feasible and every relation's checker accepts the arrangement."""
     from scenescore.costs import Relation
-    from scenescore.problem_file import load_problem
+    from scenescore.problem.files import load_problem
     from scenescore.scenarios.relations import RELATIONS
     from scenescore.solvers import solve
 

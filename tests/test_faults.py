@@ -22,7 +22,7 @@ import pytest
 import scenescore as ss
 from scenescore.cli import main
 from scenescore.learn import NetworkConfig, TrainConfig, train
-from scenescore.outputs import WriteError, atomic_write_bytes
+from scenescore.scene.outputs import WriteError, atomic_write_bytes
 
 try:
     import resource
@@ -218,7 +218,7 @@ WRITES = 50
 
 WRITER = """
 import sys
-from scenescore.outputs import atomic_write_bytes
+from scenescore.scene.outputs import atomic_write_bytes
 
 path, who = sys.argv[1], sys.argv[2]
 sys.stdin.readline()  # the start: both writers are ready

@@ -9,7 +9,7 @@ import pytest
 import torch
 from shapely.geometry import MultiPoint, Point
 
-from scenescore.exact import (
+from scenescore.geometry.exact import (
     collides,
     fcl_signed_distance,
     footprint_extent,
@@ -17,8 +17,9 @@ from scenescore.exact import (
     footprints_overlap,
     shapely_core,
 )
-from scenescore.geometry import Footprints, compose_poses, footprint_core, relative_poses, signed_distance
-from scenescore.scene import Scene, SceneObject
+from scenescore.geometry.footprints import Footprints, footprint_core, signed_distance
+from scenescore.geometry.poses import compose_poses, relative_poses
+from scenescore.scene.scene import Scene, SceneObject
 
 pytestmark = pytest.mark.float_order
 
@@ -130,7 +131,7 @@ def test_disks_are_exact_circles():
 def test_split_kernel_equals_the_plain_reference():
     """The split-coordinate kernel does the reference's arithmetic operation for operation: the same
     values bit for bit; gradients to rounding (backward sums run in another order on many-vertex cores)."""
-    from scenescore.geometry import signed_distance_placed, signed_distance_reference
+    from scenescore.geometry.footprints import signed_distance_placed, signed_distance_reference
 
     pairs = list(_pairs(400, seed=5))
     objects, poses = [], []

@@ -1,6 +1,8 @@
-"""The package's imports run one way: scene -> encoders -> models -> costs -> problem -> solvers ->
-problem files -> training / placement -> experiments -> CLI. No cycles, no upward import, and no
-private name imported from another module. Read from the source (every import, also inside functions)."""
+"""The package's imports run one way: runtime -> scene -> geometry -> vision -> encoders -> models ->
+costs -> problem -> scenarios -> solvers -> problem files -> learn -> planning -> evaluation -> viz ->
+workflow -> experiments -> CLI. No cycles, no upward import, no private name imported from another
+module, and the core (everything below learn) reaches the runtime only through ``scenescore.runtime``
+itself. Read from the source (every import, also inside functions)."""
 
 from __future__ import annotations
 
@@ -12,27 +14,19 @@ PKG = Path(__file__).resolve().parents[1] / "scenescore"
 # the layer of each module (the longest matching prefix wins); a module may import its own layer or below
 LAYERS: list[tuple[str, int]] = [
     ("scenescore.errors", 0),  # settings errors and range checks (imports nothing of the package)
-    ("scenescore.textfiles", 0),  # bounded, decoded reading of JSON and YAML files
-    ("scenescore.memory", 0),  # the memory budget, the checks made before large allocations, chunk sizes
-    ("scenescore.threads", 0),  # the run's torch thread budget, the count chosen per batch, scoped setting
-    ("scenescore.devices", 0),  # the device a model, a problem and its random numbers live on
-    ("scenescore.workers", 0),  # worker processes that exit with the run that started them
-    ("scenescore.provenance", 0),  # where a result came from: commit, date, versions, device, cores
-    ("scenescore.tasks", 0),  # an experiment's tasks, their JSON records, sweeps that resume from them
-    ("scenescore.scene_fields", 0),  # a scene's JSON fields read and checked; SceneError
-    ("scenescore.outputs", 0),  # files written atomically; WriteError
-    ("scenescore.scene", 0),
-    ("scenescore.units", 0),  # the length unit a dataset names, and lengths said in it
-    ("scenescore.geometry", 1),
-    ("scenescore.exact", 1),
-    ("scenescore.vision", 1),  # imaging primitives: render, segment, pose, crop, sprites
-    ("scenescore.encoders", 2),
-    ("scenescore.encoders.efficientnet", 2),  # as clip: the pretrained extra imported only when built
-    ("scenescore.vision.graph", 3),  # scene graphs from images (encodes crops)
-    ("scenescore.models", 3),
-    ("scenescore.models.export", 3),  # ONNX export of the energy (onnx imported only when called)
-    ("scenescore.models.bundled", 3),  # the pretrained models shipped as package data, by name
-    ("scenescore.sampling", 4),
+    (
+        "scenescore.runtime",
+        0,
+    ),  # devices, threads, memory, worker processes: the only part that knows the machine
+    ("scenescore.scene", 1),  # scenes, their fields, units, text files read and outputs written
+    ("scenescore.geometry", 2),  # poses and footprints in batched torch; the exact shapely/fcl checks
+    ("scenescore.vision", 2),  # imaging primitives: render, segment, pose, crop, sprites
+    ("scenescore.encoders", 3),
+    ("scenescore.encoders.efficientnet", 3),  # as clip: the pretrained extra imported only when built
+    ("scenescore.vision.graph", 4),  # scene graphs from images (encodes crops)
+    ("scenescore.models", 4),
+    ("scenescore.models.export", 4),  # ONNX export of the energy (onnx imported only when called)
+    ("scenescore.models.bundled", 4),  # the pretrained models shipped as package data, by name
     ("scenescore.costs", 5),
     ("scenescore.costs.relation", 5),  # a learned relation model bound to named objects of a scene
     ("scenescore.problem", 6),
@@ -40,29 +34,34 @@ LAYERS: list[tuple[str, int]] = [
     ("scenescore.scenarios.zoo", 7),  # one module per zoo scenario on common.py (ZooScenario)
     ("scenescore.scenarios.relations", 7),  # spatial relations: exact checkers, example generators
     ("scenescore.scenarios.relation_problems", 7),  # random consistent problems of relations, solved-checks
-    ("scenescore.solvers", 8),
+    ("scenescore.solvers", 8),  # the one Langevin kernel (kernel.py), the stages, chains, results
     ("scenescore.solvers.alm", 8),  # the batched augmented Lagrangian refinement
-    ("scenescore.problem_file", 9),
+    ("scenescore.problem.files", 9),  # YAML problem files: they name their solvers
     ("scenescore.learn", 10),  # training the energy: settings, counter-examples, losses, the loop
     ("scenescore.learn.training_state", 10),  # what a training run writes every so often, to resume from
-    ("scenescore.learn.workflow", 10),  # `scenescore train`'s workflow: evaluates and calibrates tidying
-    ("scenescore.placement", 10),
-    ("scenescore.tidying", 10),  # tidying a messy scene: effort, selection, pruning, the pick-and-place plan
-    ("scenescore.evaluation", 10),
-    ("scenescore.heatmap", 10),
-    ("scenescore.plot", 10),
-    ("scenescore.baselines", 10),
-    ("scenescore.experiments", 11),
-    ("scenescore.experiments.bundled", 11),  # the figure each pretrained model is documented with
-    ("scenescore.experiments.relations", 11),  # summed relation energies on random problems, per N
-    ("scenescore.experiments.relation_models", 11),  # one model per relation, kept when its edge is sharp
-    ("scenescore.experiments.relation_methods", 11),  # how each relations method solves one problem
-    ("scenescore.cli", 12),
-    ("scenescore.cli.export", 12),  # `scenescore export`
-    ("scenescore.cli.reference", 12),  # the command-line reference page, rendered from the parser
-    ("scenescore.__main__", 12),
-    ("scenescore", 12),  # the package's own __init__: the public face, above everything
+    ("scenescore.planning", 11),  # placement, the heatmap, tidying
+    ("scenescore.evaluation", 12),  # the missing-object protocol, the leave-one-object-out report
+    ("scenescore.evaluation.baselines", 12),  # nearest neighbour, NeatNet, NeatNet-R
+    ("scenescore.viz", 13),  # all drawing
+    ("scenescore.workflow", 14),  # `scenescore train`'s workflow: holds out, evaluates, calibrates tidying
+    ("scenescore.experiments", 15),
+    ("scenescore.experiments.bundled", 15),  # the figure each pretrained model is documented with
+    ("scenescore.experiments.relations", 15),  # summed relation energies on random problems, per N
+    ("scenescore.experiments.relation_models", 15),  # one model per relation, kept when its edge is sharp
+    ("scenescore.experiments.relation_methods", 15),  # how each relations method solves one problem
+    ("scenescore.experiments.tasks", 15),  # an experiment's tasks, their records, sweeps that resume
+    ("scenescore.experiments.cluster", 15),  # tasks as SLURM jobs through submitit
+    ("scenescore.cli", 16),
+    ("scenescore.cli.export", 16),  # `scenescore export`
+    ("scenescore.cli.reference", 16),  # the command-line reference page, rendered from the parser
+    ("scenescore.__main__", 16),
+    ("scenescore", 16),  # the package's own __init__: the public face, above everything
 ]
+#: the layers below training reach the runtime only through its package's own names (scenescore.runtime)
+CORE_BELOW = 10
+RUNTIME = "scenescore.runtime"
+#: the most modules the package's root may hold (beside its sub-packages)
+ROOT_MODULES = 6
 
 
 def module_name(path: Path) -> str:
@@ -135,6 +134,33 @@ def test_no_private_name_imported_across_modules():
                 if n.startswith("_") and not n.startswith("__") and target != m:
                     bad.append(f"{m}:{line} imports private {n!r} from {target}")
     assert not bad, "\n".join(bad)
+
+
+def test_the_core_reaches_the_runtime_through_its_one_interface():
+    """Below training, an import of the runtime names ``scenescore.runtime`` itself, and only the names
+    its ``__all__`` lists: no module of it, no other name."""
+    import scenescore.runtime as runtime
+
+    allowed = set(runtime.__all__)
+    bad = []
+    for m, edges in graph().items():
+        if layer(m) >= CORE_BELOW or m == RUNTIME or m.startswith(RUNTIME + "."):
+            continue
+        for target, names, line in edges:
+            if target.startswith(RUNTIME + "."):
+                bad.append(f"{m}:{line} imports {target} (import from {RUNTIME} itself)")
+            elif target == RUNTIME and (not names or set(names) - allowed):
+                bad.append(
+                    f"{m}:{line} imports {sorted(set(names) - allowed) or 'the module'} from {RUNTIME}"
+                )
+    assert not bad, "\n".join(bad)
+
+
+def test_the_root_holds_few_modules():
+    """At most ROOT_MODULES modules at the package's root: the rest live in the sub-packages that name
+    the flow."""
+    loose = sorted(p.name for p in PKG.glob("*.py"))
+    assert len(loose) <= ROOT_MODULES, loose
 
 
 def test_no_import_cycle():

@@ -11,18 +11,18 @@ import pytest
 import torch
 from conftest import assert_close_to_rounding
 
-import scenescore.memory as mem
+import scenescore.runtime.memory as mem
 from scenescore.cli import main
 from scenescore.costs import Bounds
 from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
-from scenescore.memory import MemoryBudgetError
 from scenescore.models import ScoreModel, load
 from scenescore.models.network import EnergyConfig, EnergyNet, parameter_count
-from scenescore.placement import PLACE, place
-from scenescore.problem import Problem
+from scenescore.planning.placement import PLACE, place
+from scenescore.problem.problem import Problem
+from scenescore.runtime.memory import MemoryBudgetError
 from scenescore.scenarios import DiningScenario
-from scenescore.scene import Scene, SceneObject
+from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers.langevin import LangevinSolver
 
 pytestmark = pytest.mark.float_order
@@ -120,7 +120,7 @@ def test_absurd_particles_and_candidates_are_refused_before_drawing(monkeypatch)
 
 
 def test_heatmap_grid_over_the_budget(monkeypatch, model):
-    from scenescore.heatmap import energy_grid
+    from scenescore.planning.heatmap import energy_grid
 
     scene = DiningScenario().generate(1, 0)[0]
     tiny_budget(monkeypatch)
@@ -141,7 +141,7 @@ def net_terms(model: ScoreModel, n: int) -> int:
 def test_heatmap_unchanged_by_chunking(monkeypatch, model):
     """The grid's energies in chunks of three pose sets are those of one pass, to the rounding of the
     matrix products (another batch size may take another kernel); the grid itself exactly."""
-    import scenescore.heatmap as hm
+    import scenescore.planning.heatmap as hm
 
     scene = DiningScenario().generate(1, 0)[0]
     xs, ys, e = hm.energy_grid(model, scene, "bowl_0", resolution=0.05)

@@ -14,11 +14,11 @@ import pytest  # noqa: E402
 from scenescore.cli import build_parser, main  # noqa: E402
 from scenescore.costs import Bounds, HingeCollision, PoseTarget, ReachLimit  # noqa: E402
 from scenescore.experiments.report import SeedResults, format_table, over_seeds  # noqa: E402
-from scenescore.plot import draw_scene, legend_handles, plot_result  # noqa: E402
-from scenescore.problem import FEASIBILITY_TOL, Problem  # noqa: E402
-from scenescore.scene import Scene, SceneObject  # noqa: E402
+from scenescore.problem.problem import FEASIBILITY_TOL, Problem  # noqa: E402
+from scenescore.scene.scene import Scene, SceneObject  # noqa: E402
 from scenescore.solvers.result import Status, make_result  # noqa: E402
 from scenescore.vision.render import mask_preview  # noqa: E402
+from scenescore.viz.plot import draw_scene, legend_handles, plot_result  # noqa: E402
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:

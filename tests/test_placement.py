@@ -11,11 +11,11 @@ import torch
 import scenescore as ss
 from scenescore.costs import CostFn
 from scenescore.encoders import FootprintEncoder
-from scenescore.geometry import relative_poses
+from scenescore.geometry.poses import relative_poses
 from scenescore.models import ScoreModel
 from scenescore.models.layout import overlapping_categories
 from scenescore.models.trust import reference
-from scenescore.placement import (
+from scenescore.planning.placement import (
     PLACE,
     _in_pairs,
     in_turn,
@@ -26,7 +26,7 @@ from scenescore.placement import (
     placement_problem,
     refining,
 )
-from scenescore.problem import Problem
+from scenescore.problem.problem import Problem
 from scenescore.solvers.langevin import LangevinSolver
 
 pytestmark = pytest.mark.float_order
@@ -134,7 +134,7 @@ def test_covering_screens_more_candidates_where_the_objects_are_small_for_the_bo
     """Placement's defaults cover the bounds at CANDIDATE_DENSITY per square length scale: the dining table
     (1.2 m, length scale 0.1 m) keeps PLACE's 2048; the same scene in bounds 8 times wider asks for more,
     and the same count at every scale (free of units); options given by hand are used as given."""
-    from scenescore.placement import CANDIDATE_DENSITY, MAX_COVERING, covering
+    from scenescore.planning.placement import CANDIDATE_DENSITY, MAX_COVERING, covering
 
     model, scene = _model(), _scenes()[0]
     assert covering(PLACE, model, [scene]) is PLACE

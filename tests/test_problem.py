@@ -10,8 +10,8 @@ import pytest
 
 from scenescore.cli import UserError
 from scenescore.cli import problems as cli_problems
-from scenescore.problem import ProblemError
-from scenescore.problem_file import load_problem
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import ProblemError
 
 SCENE = {
     "objects": [

@@ -16,7 +16,7 @@ import pytest
 
 import scenescore as ss
 from scenescore.cli import build_parser
-from scenescore.problem_file import load_problem
+from scenescore.problem.files import load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()

@@ -11,11 +11,11 @@ import torch
 
 import scenescore as ss
 from scenescore.costs import CostError, CostFn, LearnedEnergy
-from scenescore.problem import Problem, ProblemError
-from scenescore.problem_file import load_problem
-from scenescore.sampling import PLACEMENT, LangevinConfig, langevin, resample, screen, sweep_headings
-from scenescore.scene import Scene, SceneObject
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import Problem, ProblemError
+from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers import solve
+from scenescore.solvers.kernel import PLACEMENT, LangevinConfig, langevin, resample, screen, sweep_headings
 
 pytestmark = pytest.mark.float_order
 

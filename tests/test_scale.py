@@ -10,9 +10,9 @@ import pytest
 import torch
 
 import scenescore as ss
-from scenescore.evaluation import make_cases
+from scenescore.evaluation.cases import make_cases
 from scenescore.learn import NetworkConfig, TrainConfig, data_scale, train
-from scenescore.placement import PLACE, place_many
+from scenescore.planning.placement import PLACE, place_many
 
 CFG = TrainConfig(
     iterations=12, batch_scenes=4, negatives=4, perturbed=2, network=NetworkConfig(hidden=16, layers=2)

@@ -105,7 +105,7 @@ def test_dining_is_seeded_and_oracle_is_close():
 def test_atomic_writes_take_the_umask_not_0600(tmp_path):
     import os
 
-    from scenescore.outputs import atomic_write_text
+    from scenescore.scene.outputs import atomic_write_text
 
     old = os.umask(0o022)
     try:

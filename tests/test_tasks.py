@@ -8,7 +8,8 @@ import pickle
 
 import pytest
 
-from scenescore.tasks import Codec, Sweep, Task, code_version, run_tasks
+from scenescore.experiments.tasks import Codec, Sweep, Task, run_tasks
+from scenescore.runtime.provenance import code_version
 
 
 def _square(task: Task, log=print) -> dict:
@@ -119,7 +120,7 @@ def test_records_are_written_as_each_task_finishes_in_worker_processes(tmp_path)
     written: list[int] = []
 
     def local(fn, items, jobs, log, bar, done):  # the executor seam: what runs the tasks
-        from scenescore.workers import map_in_workers
+        from scenescore.runtime.workers import map_in_workers
 
         def keep(k, value):
             done(k, value)

@@ -14,7 +14,7 @@ from scenescore.cli import main  # noqa: E402
 from scenescore.errors import ConfigError  # noqa: E402
 from scenescore.learn import LR_DENSE, NetworkConfig, TrainConfig, log_validation, train  # noqa: E402
 from scenescore.scenarios import get  # noqa: E402
-from scenescore.scene import write_jsonl  # noqa: E402
+from scenescore.scene.scene import write_jsonl  # noqa: E402
 
 CFG = TrainConfig(iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
 

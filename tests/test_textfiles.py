@@ -8,10 +8,10 @@ import pytest
 
 from scenescore.cli import main
 from scenescore.errors import ConfigError
-from scenescore.problem import ProblemError
-from scenescore.problem_file import load_problem
-from scenescore.scene import Scene, SceneError, read_jsonl
-from scenescore.textfiles import MAX_DEPTH, MAX_FILE_MB_ENV, max_file_bytes
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import ProblemError
+from scenescore.scene.scene import Scene, SceneError, read_jsonl
+from scenescore.scene.textfiles import MAX_DEPTH, MAX_FILE_MB_ENV, max_file_bytes
 
 SCENE = {
     "bounds": [[-0.5, -0.5], [0.5, 0.5]],

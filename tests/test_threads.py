@@ -7,11 +7,15 @@ import pytest
 import torch
 
 import scenescore as ss
-import scenescore.threads as th
+import scenescore.models.chunks as chunks
+import scenescore.models.network as network
+import scenescore.runtime.threads as th
 from scenescore.errors import ConfigError
 from scenescore.learn import TrainConfig, train
-from scenescore.placement import place
-from scenescore.sampling import PLACEMENT
+from scenescore.planning.placement import place
+from scenescore.runtime import cores
+from scenescore.runtime.ahead import Ahead
+from scenescore.solvers.kernel import PLACEMENT
 from scenescore.solvers.langevin import LangevinOptions
 
 pytestmark = pytest.mark.own_threads
@@ -85,8 +89,8 @@ def test_choices_inside_a_one_thread_block_see_the_callers_budget(monkeypatch):
 def test_free_cores_is_a_share_of_this_process_cpus():
     free = th.free_cores()
     if free is None:
-        pytest.skip("no /proc/stat here")
-    assert 0.0 <= free <= len(th._cpus() or range(th.os.cpu_count() or 1))
+        pytest.skip("the CPU times cannot be read here")
+    assert 0.0 <= free <= cores.usable_cores()
 
 
 def test_train_and_place_leave_torchs_setting_alone():
@@ -114,7 +118,7 @@ def test_ahead_answers_a_submitted_key_from_its_worker_and_any_other_here():
         return run
 
     gate = threading.Event()
-    with th.Ahead() as ahead:
+    with Ahead() as ahead:
         ahead.submit("a", lambda: gate.wait(5) and work("a")())
         ahead.submit("b", work("b"))  # waits behind a
         ahead.submit("c", work("c"))  # cancels b, which has not started
@@ -127,12 +131,12 @@ def test_ahead_answers_a_submitted_key_from_its_worker_and_any_other_here():
 
 
 def test_ahead_raises_the_workers_error_and_is_not_worth_it_on_one_thread():
-    with th.Ahead() as ahead:
+    with Ahead() as ahead:
         ahead.submit("x", lambda: 1 / 0)
         with pytest.raises(ZeroDivisionError):
             ahead.result("x", lambda: 0)  # a failure is not hidden by computing again
     with ss.thread_budget(1):
-        assert not th.Ahead.worth()  # --threads 1: no second core
+        assert not Ahead.worth()  # --threads 1: no second core
 
 
 def test_in_parallel_answers_in_order_each_piece_on_one_torch_thread():
@@ -157,18 +161,18 @@ def test_a_seed_names_the_weights_and_placements_whatever_the_load(monkeypatch):
     cores, each on one torch thread, so a busy machine (one piece at a time) and an idle one (two at
     once) give the same model and the same placement, bit for bit."""
     torch.set_num_threads(2)  # no budget given: the automatic choice, up to two at once
-    monkeypatch.setattr(th, "usable_cores", lambda: 2)  # the pieces: fixed by the machine, not the load
+    monkeypatch.setattr(network, "usable_cores", lambda: 2)  # the pieces: fixed by the machine, not the load
     # 48 rows of up to 25 books: torch's own threads gave two models here (silu rounds by thread share)
     scenes = ss.scenarios.get("zoo-books").generate(48, 0)
     hole = scenes[0].without(scenes[0].objects[1].name)
     threads_seen: set[str] = set()
-    real = th.in_parallel
+    real = chunks.in_parallel
 
     def spy(work, parallel=True):
         threads_seen.add(f"{th.workers()}")
         return real(work, parallel)
 
-    monkeypatch.setattr(th, "in_parallel", spy)
+    monkeypatch.setattr(chunks, "in_parallel", spy)
 
     def run():
         model = train(scenes, TrainConfig(iterations=1), seed=0, progress=False)

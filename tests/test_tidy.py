@@ -14,11 +14,7 @@ import torch
 from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
 from scenescore.models import ScoreModel, TidyCalibration, load
-from scenescore.problem import Problem
-from scenescore.sampling import PLACEMENT
-from scenescore.scene import Scene, SceneObject
-from scenescore.solvers.langevin import LangevinOptions
-from scenescore.tidying import (
+from scenescore.planning.tidying import (
     COUNT,
     Step,
     TidyError,
@@ -33,9 +29,13 @@ from scenescore.tidying import (
     tidy_problem,
     validate_plan,
 )
-from scenescore.tidying.draws import NEAR, exchanges, near_draws, swap_draws
-from scenescore.tidying.pruning import place_again
-from scenescore.tidying.selection import select_moves
+from scenescore.planning.tidying.draws import NEAR, exchanges, near_draws, swap_draws
+from scenescore.planning.tidying.pruning import place_again
+from scenescore.planning.tidying.selection import select_moves
+from scenescore.problem.problem import Problem
+from scenescore.scene.scene import Scene, SceneObject
+from scenescore.solvers.kernel import PLACEMENT
+from scenescore.solvers.langevin import LangevinOptions
 
 
 def _two(a=(-0.2, 0.0), b=(0.2, 0.0)) -> Scene:
@@ -307,7 +307,7 @@ def _swapped_wells(
     chain = replace(PLACEMENT, steps=1, final_descent=0)
     o = TidyOptions(propose=LangevinOptions(particles=4096, chain=chain))
     prob = tidy_problem(model, scene, 1.0, options=o)
-    tidy_module = importlib.import_module("scenescore.tidying.selection")
+    tidy_module = importlib.import_module("scenescore.planning.tidying.selection")
     old = tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES
     tidy_module.PAIR_CANDIDATES, tidy_module.SWAP_CANDIDATES = pairs, swaps
     try:
@@ -430,9 +430,9 @@ def test_the_placement_candidates_leave_each_moved_object_out_in_turn():
 def test_placing_ahead_on_a_second_core_gives_the_same_answer_to_the_bit(monkeypatch):
     import threading
 
-    from scenescore.threads import Ahead
+    from scenescore.runtime.ahead import Ahead
 
-    T = importlib.import_module("scenescore.tidying.pipeline")
+    T = importlib.import_module("scenescore.planning.tidying.pipeline")
     torch.manual_seed(0)
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     scene = Scene(

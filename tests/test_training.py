@@ -10,9 +10,9 @@ from scenescore import Scene, SceneObject
 from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
 from scenescore.learn import RAW_EDGES, NetworkConfig, TrainConfig, train
-from scenescore.placement import PLACE as PLACE_DEFAULT
-from scenescore.placement import place
-from scenescore.sampling import LangevinConfig
+from scenescore.planning.placement import PLACE as PLACE_DEFAULT
+from scenescore.planning.placement import place
+from scenescore.solvers.kernel import LangevinConfig
 
 
 def _offset_scenes(n, seed):

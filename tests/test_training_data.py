@@ -10,7 +10,7 @@ import torch
 from scenescore.cli import main
 from scenescore.learn import check_training_data
 from scenescore.scenarios import DiningScenario
-from scenescore.scene import SceneError, read_jsonl, write_jsonl
+from scenescore.scene.scene import SceneError, read_jsonl, write_jsonl
 
 
 @pytest.fixture(scope="module")

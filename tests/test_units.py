@@ -9,10 +9,10 @@ import pytest
 
 import scenescore as ss
 from scenescore.cli import main
-from scenescore.evaluation import CategoryErrors, EvalReport
+from scenescore.evaluation.report import CategoryErrors, EvalReport
 from scenescore.learn import NetworkConfig, TrainConfig
 from scenescore.scenarios import get
-from scenescore.units import declared_unit
+from scenescore.scene.units import declared_unit
 
 TINY = TrainConfig(iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1))
 

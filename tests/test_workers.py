@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from scenescore.workers import worker_pool
+from scenescore.runtime.workers import worker_pool
 
 
 def _pid(_: int) -> int:
@@ -59,7 +59,7 @@ def test_workers_exit_when_their_parent_is_killed_outright(tmp_path):
     code = textwrap.dedent(
         """
         import os, sys, time
-        from scenescore.workers import worker_pool
+        from scenescore.runtime.workers import worker_pool
         def pid(_):
             return os.getpid()
         if __name__ == "__main__":
@@ -87,11 +87,11 @@ def test_workers_exit_when_their_parent_is_killed_outright(tmp_path):
 def test_default_jobs_is_one_per_usable_core_on_the_cpu(monkeypatch):
     import torch
 
-    from scenescore import threads
-    from scenescore.workers import default_jobs
+    from scenescore.runtime import cores
+    from scenescore.runtime.workers import default_jobs
 
-    monkeypatch.setattr(threads, "_cpus", lambda: {0, 3, 5})  # the affinity, not the machine's count
-    assert threads.usable_cores() == 3
+    monkeypatch.setattr(cores, "_cpus", lambda: [0, 3, 5])  # the affinity, not the machine's count
+    assert cores.usable_cores() == 3
     assert default_jobs() == 3 and default_jobs(torch.device("cpu")) == 3
     assert default_jobs(torch.device("mps")) == 1
 
@@ -100,10 +100,10 @@ def test_default_jobs_is_one_per_usable_core_on_the_cpu(monkeypatch):
 def test_default_jobs_share_a_cuda_device_as_its_free_memory_allows(monkeypatch, free_gib, jobs):
     import torch
 
-    from scenescore import threads
-    from scenescore.workers import default_jobs
+    from scenescore.runtime import cores
+    from scenescore.runtime.workers import default_jobs
 
-    monkeypatch.setattr(threads, "_cpus", lambda: {0, 3, 5})
+    monkeypatch.setattr(cores, "_cpus", lambda: [0, 3, 5])
     monkeypatch.setattr(
         torch.cuda, "mem_get_info", lambda device=None: (int(free_gib * 1024**3), 80 * 1024**3)
     )
@@ -111,8 +111,8 @@ def test_default_jobs_share_a_cuda_device_as_its_free_memory_allows(monkeypatch,
 
 
 def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tmp_path):
-    from scenescore import workers
     from scenescore.cli import experiment, main
+    from scenescore.runtime import workers
 
     jobs = []
 
@@ -180,7 +180,7 @@ def _square(x: int, log) -> int:
 
 
 def test_map_in_workers_with_a_bar_keeps_results_in_order_and_every_log_line(capsys):
-    from scenescore.workers import map_in_workers
+    from scenescore.runtime.workers import map_in_workers
 
     lines: list[str] = []
     assert map_in_workers(_square, [3, 1, 2], jobs=2, log=lines.append, bar="squares") == [9, 1, 4]
@@ -199,7 +199,7 @@ def _die_on_one(x: int, log) -> int:
 def test_a_worker_killed_in_its_task_ends_the_run_with_a_clear_error():
     """A worker that dies without an error of its own (SIGKILL) raises WorkerDied at once: the run
     neither waits for the lost task forever nor leaves the other workers running."""
-    from scenescore.workers import WorkerDied, map_in_workers
+    from scenescore.runtime.workers import WorkerDied, map_in_workers
 
     t0 = time.monotonic()
     with pytest.raises(WorkerDied, match="fewer worker processes"):

@@ -12,7 +12,7 @@ import torch
 import scenescore as ss
 from scenescore.cli import main
 from scenescore.learn import NetworkConfig, TrainConfig
-from scenescore.learn.workflow import NothingLearned, holdout
+from scenescore.workflow.train import NothingLearned, holdout
 
 SMALL = TrainConfig(
     iterations=3, batch_scenes=2, negatives=2, reanchored=1, network=NetworkConfig(hidden=8, layers=1)
@@ -98,7 +98,8 @@ def test_given_held_out_scenes_are_validated_on_and_every_scene_trained_on(tmp_p
 
 @pytest.mark.parametrize("folds", [1, None])  # one hold-out; cross-validation (six scenes)
 def test_a_model_that_learned_nothing_is_refused_unless_forced(tmp_path, monkeypatch, folds):
-    from scenescore.learn import crossval, workflow
+    from scenescore.workflow import crossval
+    from scenescore.workflow import train as workflow
 
     def flat(scenes, *a, **k):
         model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)

@@ -40,11 +40,11 @@ class UserError(Exception):
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
-    from ..cluster import TasksFailed
     from ..errors import ConfigError
+    from ..experiments.cluster import TasksFailed
     from ..models import CheckpointError
-    from ..scene import SceneError
-    from ..workers import WorkerDied
+    from ..runtime.workers import WorkerDied
+    from ..scene.scene import SceneError
 
     errs: list[type[BaseException]] = [
         UserError,
@@ -56,7 +56,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
         WorkerDied,
     ]
     try:
-        from ..problem import ProblemError
+        from ..problem.problem import ProblemError
 
         errs.append(ProblemError)
     except ImportError:
@@ -138,7 +138,7 @@ SCENES = number(1, 1_000_000, integer=True)  # scenes to generate or test on
 
 def add_common(p: argparse.ArgumentParser, seed: int | None = 0, seed_help: str | None = None) -> None:
     """Options every command has."""
-    from ..threads import MAX_THREADS
+    from ..runtime.threads import MAX_THREADS
 
     p.add_argument("--seed", type=SEED, default=seed, help=seed_help or f"random seed (default {seed})")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -171,7 +171,7 @@ def add_device(p: argparse.ArgumentParser) -> None:
 def device_of(args: argparse.Namespace) -> torch.device:
     """``--device`` as a torch device; one that is unknown or missing on this machine is a one-line error
     naming the option."""
-    from ..devices import resolve_device
+    from ..runtime.devices import resolve_device
 
     return resolve_device(args.device, "--device")
 
@@ -200,9 +200,9 @@ def model_of(args: argparse.Namespace, device: torch.device | None = None) -> Sc
 
 
 def provenance_of(args: argparse.Namespace, seconds: float) -> dict:
-    """Where a run's results came from (:func:`scenescore.provenance.collect_provenance`): the command
+    """Where a run's results came from (:func:`scenescore.runtime.provenance.collect_provenance`): the command
     line as typed, every option as parsed (defaults included), ``seconds`` of wall time, the device."""
-    from ..provenance import collect_provenance
+    from ..runtime.provenance import collect_provenance
 
     # the handler, the raw line and the commit at the start (recorded apart), a temporary folder
     skip = {"func", "argv", "commit_at_start", "model_cache"}
@@ -221,7 +221,7 @@ FOLDER_OUTPUTS = {"demo", "experiment", "compare"}  # commands whose --out is a 
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Every output path the command was given can be written, checked before any work is done."""
-    from ..outputs import check_output_path
+    from ..scene.outputs import check_output_path
 
     for attr in ("out", "plot", "report", "scene_out", "images", "state"):
         value = getattr(args, attr, None)
@@ -235,15 +235,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line as typed, for provenance
     if args.command == "experiment":  # the code a long run started from, before the checkout can move
-        from ..provenance import git_commit
+        from ..runtime.provenance import git_commit
 
         args.commit_at_start = git_commit()
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
     try:
-        from ..memory import budget, set_budget
-        from ..threads import thread_budget
+        from ..runtime.memory import budget, set_budget
+        from ..runtime.threads import thread_budget
 
         set_budget(getattr(args, "memory_gb", None))  # this run's budget; a bad value is an error now
         budget()
@@ -261,7 +261,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.close()
         return 0
     finally:
-        from ..memory import set_budget
+        from ..runtime.memory import set_budget
 
         set_budget(None)
     return int(rc or 0)

@@ -11,12 +11,12 @@ from pathlib import Path
 from typing import Any
 
 from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
-from ..learn.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES
 from ..learn.training_state import SAVE_EVERY
-from ..memory import check, format_gb
 from ..models.ensemble import MAX_MEMBERS
-from ..outputs import check_output_path
-from ..scene import Scene, read_jsonl, write_jsonl
+from ..runtime.memory import check, format_gb
+from ..scene.outputs import check_output_path
+from ..scene.scene import Scene, read_jsonl, write_jsonl
+from ..workflow.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES
 from . import ITERATIONS, JOBS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
 
@@ -277,7 +277,7 @@ def _write_generated(
         it = iter(_generate_within_budget(scenario, name, n, seed))
     head = list(islice(it, GENERATE_SAMPLE))
     _check_disk(out, name, n, head)
-    # the built-in scenarios are in metres: say so, so that reports print centimetres (scenescore.units)
+    # the built-in scenarios are in metres: say so, so that reports print centimetres (scenescore.scene.units)
     marked = (replace(s, meta={**s.meta, "unit": "m"}) for s in chain(head, it))
     with tqdm(marked, total=n, desc=f"generate {name}", unit="scene", disable=not progress) as bar:
         return write_jsonl(out, bar)
@@ -339,7 +339,7 @@ def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
 
 def run_train(args: argparse.Namespace) -> int:
     from ..encoders import make_encoder
-    from ..learn.workflow import NothingLearned, train_model
+    from ..workflow.train import NothingLearned, train_model
 
     # settings first: a bad value fails before any data is read or any training is done
     cfg = build_config(

@@ -38,12 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..evaluation import OraclePlacer, make_cases, score_cases
+    from ..evaluation.cases import OraclePlacer, make_cases, score_cases
     from ..learn import TrainConfig
-    from ..placement import SceneScorePlacer
-    from ..plot import demo_figure
+    from ..planning.placement import SceneScorePlacer
     from ..scenarios import DiningScenario
-    from ..scene import write_jsonl
+    from ..scene.scene import write_jsonl
+    from ..viz.plot import demo_figure
 
     device = str(device_of(args))  # checked before any work
     t0 = time.perf_counter()

@@ -35,9 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
-    from ..evaluation import evaluate
-    from ..outputs import atomic_write_text
-    from ..scene import read_jsonl
+    from ..evaluation.report import evaluate
+    from ..scene.outputs import atomic_write_text
+    from ..scene.scene import read_jsonl
 
     device = device_of(args)
     for f in (args.data, args.train_data):

@@ -299,7 +299,7 @@ def run(args: argparse.Namespace) -> int:
     check_options(args)
     args.device = device_of(args)  # checked before any work; every runner passes it on
     if args.jobs is None:
-        from ..workers import default_jobs
+        from ..runtime.workers import default_jobs
 
         args.jobs = default_jobs(args.device)
         if args.jobs > 1:
@@ -351,7 +351,7 @@ def _run_each(args: argparse.Namespace, names: list[str], root: Path | None = No
             + "".join(f"\n\n![{f}]({name}/{f})" for f in figures)
         )
     if root is not None:
-        from ..outputs import atomic_write_text
+        from ..scene.outputs import atomic_write_text
 
         atomic_write_text(
             root / "report.md", "# SceneScore: the paper's experiments\n\n" + "\n\n".join(sections) + "\n"

@@ -11,14 +11,14 @@ from . import UserError
 
 if TYPE_CHECKING:
     from ..experiments.report import Row
-    from ..tasks import Sweep
+    from ..experiments.tasks import Sweep
 
 
 def _sweep(args: argparse.Namespace, out: Path) -> Sweep:
     """Where the experiment keeps each finished task's record (``out/tasks``), so that the same command
     run again computes only the tasks it has no record of (``--fresh``: every one), and what runs the
     tasks (``--executor``: this machine's workers, or submitit's jobs with their logs under ``out/slurm``)."""
-    from ..tasks import Sweep
+    from ..experiments.tasks import Sweep
 
     sweep = Sweep(out / "tasks", fresh=bool(getattr(args, "fresh", False)))
     slurm = {k: getattr(args, k, None) for k in SLURM_OPTIONS}
@@ -28,7 +28,7 @@ def _sweep(args: argparse.Namespace, out: Path) -> Sweep:
         if given:
             raise UserError(f"{', '.join(given)}: options of --executor slurm or submitit-local")
         return sweep
-    from ..cluster import SlurmConfig, SubmititExecutor
+    from ..experiments.cluster import SlurmConfig, SubmititExecutor
 
     try:
         config = SlurmConfig(
@@ -200,9 +200,9 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
     from ..experiments import zoo
     from ..learn import TrainConfig
-    from ..outputs import atomic_write_text
-    from ..plot import demo_figure
     from ..scenarios.zoo import ROOMS
+    from ..scene.outputs import atomic_write_text
+    from ..viz.plot import demo_figure
 
     names = args.scenarios.split(",") if args.scenarios else None
     cfg = TrainConfig(iterations=150 if args.quick else 600, members=args.members or 1)
@@ -277,7 +277,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
     from ..experiments import tidy
     from ..learn import TrainConfig
-    from ..outputs import atomic_write_text
+    from ..scene.outputs import atomic_write_text
 
     names = tuple(args.scenarios.split(",")) if args.scenarios else tidy.SCENARIOS
     if args.quick and not args.scenarios:

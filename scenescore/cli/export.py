@@ -48,8 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..models.export import energy_inputs, export_embedding_onnx, export_onnx, require
-    from ..outputs import check_output_path
-    from ..scene import Scene
+    from ..scene.outputs import check_output_path
+    from ..scene.scene import Scene
 
     # outputs, settings, the packages and the check's scene first: nothing is exported when any is wrong
     check_output_path(args.out, "--out")

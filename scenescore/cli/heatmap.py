@@ -31,9 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..heatmap import energy_grid, grid_minimum
-    from ..plot import draw_heatmap
-    from ..scene import Scene
+    from ..planning.heatmap import energy_grid, grid_minimum
+    from ..scene.scene import Scene
+    from ..viz.plot import draw_heatmap
 
     device = device_of(args)
     if args.resolution <= 0:

@@ -9,7 +9,7 @@ import os
 import platform
 from typing import Any
 
-from ..provenance import PACKAGES, version_of
+from ..runtime.provenance import PACKAGES, version_of
 from . import add_common
 
 # each optional extra (pyproject.toml) and the modules it installs: the extra is there when all import
@@ -48,8 +48,8 @@ def installed(modules: tuple[str, ...]) -> bool:
 def environment() -> dict[str, str | None]:
     """The environment variables scenescore reads, each with its value (None: unset)."""
     from ..encoders.clip import CLIP_WEIGHTS_ENV
-    from ..memory import ENV as MEMORY_ENV
-    from ..textfiles import MAX_FILE_MB_ENV
+    from ..runtime.memory import ENV as MEMORY_ENV
+    from ..scene.textfiles import MAX_FILE_MB_ENV
 
     return {name: os.environ.get(name) for name in (MEMORY_ENV, MAX_FILE_MB_ENV, CLIP_WEIGHTS_ENV)}
 
@@ -59,9 +59,9 @@ def collect() -> dict[str, Any]:
     import torch
 
     from .. import __version__
-    from ..memory import budget, format_gb
-    from ..threads import budget as thread_budget
-    from ..threads import usable_cores
+    from ..runtime.cores import usable_cores
+    from ..runtime.memory import budget, format_gb
+    from ..runtime.threads import budget as thread_budget
 
     mem, source = budget()
     cuda = torch.cuda.is_available()

@@ -43,10 +43,10 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from dataclasses import replace
 
-    from ..placement import PLACE, covering, overlapping, place
-    from ..plot import plot_scene
-    from ..scene import Scene
-    from ..units import UNITS, length_unit
+    from ..planning.placement import PLACE, covering, overlapping, place
+    from ..scene.scene import Scene
+    from ..scene.units import UNITS, length_unit
+    from ..viz.plot import plot_scene
     from . import UserError, device_of, model_of
 
     device = device_of(args)

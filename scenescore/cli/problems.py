@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load(path: str, args: argparse.Namespace):
-    from ..problem_file import load_problem
+    from ..problem.files import load_problem
 
     return load_problem(path, device=device_of(args))
 
@@ -75,7 +75,7 @@ def warn_unused_options(path: str, options: dict, chains: list[str]) -> None:
 
 
 def run_solve(args: argparse.Namespace) -> int:
-    from ..outputs import atomic_write_text
+    from ..scene.outputs import atomic_write_text
     from ..solvers import solve
 
     lp = _load(args.problem, args)
@@ -91,7 +91,7 @@ def run_solve(args: argparse.Namespace) -> int:
     if args.scene_out:
         r.scene.to_json(args.scene_out)
     if args.plot:
-        from ..plot import plot_result
+        from ..viz.plot import plot_result
 
         plot_result(r, args.plot)
     return 0 if r.success else 1
@@ -99,7 +99,7 @@ def run_solve(args: argparse.Namespace) -> int:
 
 def _solver_list(text: str) -> list[str]:
     """``--solvers`` as names, each checked against the registry; empty or repeated names refused."""
-    from ..problem import ProblemError
+    from ..problem.problem import ProblemError
     from ..solvers import get
 
     names = [s.strip() for s in text.split(",")]
@@ -120,7 +120,7 @@ def _solver_list(text: str) -> list[str]:
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    from ..outputs import atomic_write_text
+    from ..scene.outputs import atomic_write_text
     from ..solvers.compare import compare
 
     if args.out is not None and args.out.suffix in (".md", ".json"):

@@ -44,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
         render_page,
         replace_readme_table,
     )
-    from ..outputs import atomic_write_text
-    from ..textfiles import read_text
+    from ..scene.outputs import atomic_write_text
+    from ..scene.textfiles import read_text
 
     try:
         doc = load_results(args.results)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..tidying import EFFORT
+    from ..planning.tidying import EFFORT
     from . import add_common, add_device, add_model
 
     p = sub.add_parser(
@@ -62,9 +62,9 @@ def _reach(text: str | None) -> tuple[tuple[float, float], float] | None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..plot import plot_tidy
-    from ..scene import Scene
-    from ..tidying import tidy
+    from ..planning.tidying import tidy
+    from ..scene.scene import Scene
+    from ..viz.plot import plot_tidy
     from . import device_of, model_of
 
     device = device_of(args)

@@ -1,7 +1,7 @@
 """``scenescore train``'s settings from a YAML file (``--config``) and ``--set key=value`` overrides.
 
 Every :class:`~scenescore.learn.TrainConfig` field is a key; the fields of its ``network``
-(:class:`~scenescore.learn.NetworkConfig`) and ``chain`` (:class:`~scenescore.sampling.LangevinConfig`)
+(:class:`~scenescore.learn.NetworkConfig`) and ``chain`` (:class:`~scenescore.solvers.kernel.LangevinConfig`)
 are keys as ``network.hidden`` and ``chain.steps`` (a config file may also nest them as mappings).
 An unknown key is refused with the nearest valid one named; a value of the wrong type with the type.
 """
@@ -15,8 +15,8 @@ from typing import Any
 
 from ..errors import ConfigError, nearest_name
 from ..learn import NetworkConfig, TrainConfig
-from ..sampling import LangevinConfig
-from ..textfiles import check_yaml_depth, check_yaml_tree, read_text
+from ..scene.textfiles import check_yaml_depth, check_yaml_tree, read_text
+from ..solvers.kernel import LangevinConfig
 
 __all__ = ["setting_keys", "parse_overrides", "read_config", "build_config", "overridden"]
 

@@ -3,13 +3,13 @@
 A cost maps poses ``(B, N, 3)`` to ``(B,)``. ``w * cost`` and ``cost + cost`` build a :class:`Sum`, a flat
 list of ``(weight, term)`` (sums never nest); two terms with one name are an error. Costs that need the
 scene (footprints, names, which objects move) are *bound* to it with :meth:`Cost.bind`, which returns a
-bound copy; :class:`~scenescore.problem.Problem` does this for you.
+bound copy; :class:`~scenescore.problem.problem.Problem` does this for you.
 
 Constraint-like costs (collision, bounds, reach) also expose their constraints as ``g(poses) >= 0``
 rows in metres; their penalty is ``sum(relu(-g) ** power)`` and their violation is ``max(relu(-g))``.
 
 A cost is one class: its torch evaluation (``evaluate``), its constraint rows (``constraints``), its
-exact feasibility check (``check``: :class:`~scenescore.problem.Problem` asks every term), and, in the
+exact feasibility check (``check``: :class:`~scenescore.problem.problem.Problem` asks every term), and, in the
 cost's own module, its CasADi form (:func:`scenescore.costs.symbolic.register_casadi_form`) and its YAML
 spec (:func:`scenescore.costs.spec.register_cost_type`). See ``docs/extending.md``. A term with an
 opinion on candidate poses beyond its value (it proposes some, doubts others: the learned energy) is also
@@ -28,9 +28,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..devices import resolve_device
-from ..geometry import Footprints
-from ..scene import Scene, SceneError
+from ..geometry.footprints import Footprints
+from ..runtime import resolve_device
+from ..scene.scene import Scene, SceneError
 
 __all__ = [
     "CostError",

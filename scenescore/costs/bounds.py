@@ -9,8 +9,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..exact import footprint_extent
-from ..geometry import support_extent
+from ..geometry.exact import footprint_extent
+from ..geometry.footprints import support_extent
 from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form

@@ -12,9 +12,9 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from ..exact import overlap_depth_exceeds, shapely_core
-from ..geometry import signed_distance_placed, signed_distance_reference
-from ..memory import chunk_rows, return_freed_memory
+from ..geometry.exact import overlap_depth_exceeds, shapely_core
+from ..geometry.footprints import signed_distance_placed, signed_distance_reference
+from ..runtime import chunk_rows, return_freed_memory
 from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form

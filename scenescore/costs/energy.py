@@ -10,15 +10,15 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..devices import draw
-from ..geometry import compose_poses
+from ..geometry.poses import compose_poses
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
 from ..models.model import with_walls
 from ..models.rivals import rivals
 from ..models.trust import Assessment, assess, outside_data
-from ..scene import Scene
-from ..units import length_unit
+from ..runtime import draw
+from ..scene.scene import Scene
+from ..scene.units import length_unit
 from .base import Cost, CostError, check_scene_names
 from .guide import Alternatives, Guide
 from .spec import CostSpec, SpecContext, register_cost_type

@@ -26,7 +26,7 @@ from torch import Tensor
 from ..models import ScoreModel
 from ..models.batching import SceneTensors
 from ..models.model import with_walls
-from ..scene import Scene, SceneObject
+from ..scene.scene import Scene, SceneObject
 from .base import Cost, CostError, check_scene_names
 from .spec import CostSpec, SpecContext, register_cost_type
 

@@ -2,7 +2,7 @@
 
 A cost module declares a :class:`CostSpec` subclass with ``type: Literal["mytype"]`` and its keys, builds
 the cost in :meth:`CostSpec.build`, and calls :func:`register_cost_type`; a problem file's ``costs`` list
-is read with the registered specs (:mod:`scenescore.problem_file`).
+is read with the registered specs (:mod:`scenescore.problem.files`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Annotated, Any, Protocol
 
 from pydantic import BaseModel, ConfigDict, Field, PydanticUndefinedAnnotation
 
-from ..scene_fields import MAX_LENGTH
+from ..scene.fields import MAX_LENGTH
 from .base import Cost, CostError
 
 __all__ = ["CostSpec", "Coordinate", "SpecContext", "register_cost_type", "cost_types"]

@@ -20,8 +20,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..geometry import footprint_core
-from ..scene import Scene
+from ..geometry.footprints import footprint_core
+from ..scene.scene import Scene
 from .base import ConstraintCost, Cost, CostError
 
 __all__ = [

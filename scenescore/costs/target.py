@@ -11,7 +11,7 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from ..scene_fields import MAX_LENGTH
+from ..scene.fields import MAX_LENGTH
 from .base import Cost, CostError, check_scene_names
 from .spec import Coordinate, CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form

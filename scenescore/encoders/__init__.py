@@ -1,6 +1,6 @@
 """Semantic encoders: object -> pose-invariant vector.
 
-An :class:`Encoder` turns one :class:`~scenescore.scene.SceneObject` into a fixed-length vector. The
+An :class:`Encoder` turns one :class:`~scenescore.scene.scene.SceneObject` into a fixed-length vector. The
 energy model passes that vector through a trained 2-layer MLP and appends the scale descriptor
 (the footprint's length and width). Encoders are registered by name so that a checkpoint can
 rebuild the one it was trained with (:func:`make_encoder`).
@@ -21,7 +21,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..scene import Scene, SceneError, SceneObject
+from ..scene.scene import Scene, SceneError, SceneObject
 from .footprint import FootprintEncoder
 
 __all__ = [

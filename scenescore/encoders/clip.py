@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..scene import SceneError, SceneObject
+from ..scene.scene import SceneError, SceneObject
 from ..vision.crop import Crop
 from ..vision.render import DEFAULT_PPM
 from .image import object_crop_for

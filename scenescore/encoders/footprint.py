@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..scene import SceneObject
+from ..scene.scene import SceneObject
 
 __all__ = ["FootprintEncoder"]
 

@@ -1,7 +1,7 @@
 """The built-in ``"image"`` encoder: pose-invariant descriptors of an object's rectified crop.
 
 Both turn a rectified :class:`~scenescore.vision.crop.Crop` into a vector (``encode_crop``) and, as
-:class:`~scenescore.encoders.Encoder` s, any :class:`~scenescore.scene.SceneObject` (``encode``): the
+:class:`~scenescore.encoders.Encoder` s, any :class:`~scenescore.scene.scene.SceneObject` (``encode``): the
 crop file named by its ``image`` field, or else its sprite rendered alone, rectified and cropped by
 the same pipeline as an object detected in a scene image.
 """
@@ -15,7 +15,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..scene import SceneError, SceneObject
+from ..scene.scene import SceneError, SceneObject
 from ..vision.crop import Crop, crop_from_file, object_crop
 from ..vision.render import DEFAULT_PPM
 

@@ -25,12 +25,12 @@ from typing import Any, cast
 
 import numpy as np
 
-from ..evaluation import MissingCase, assignment, case_errors
+from ..evaluation.cases import MissingCase, assignment, case_errors
 from ..models import ScoreModel
 from ..scenarios import get
 from ..scenarios.zoo import ROOMS, ZOO
 from ..scenarios.zoo.common import Pose
-from ..scene import SceneError
+from ..scene.scene import SceneError
 from .zoo import place_back, zoo_cases
 
 __all__ = [
@@ -136,9 +136,9 @@ def relation_figure(
     the footprints apart, and ``k``."""
     from ..costs import Bounds, HingeCollision, Relation
     from ..costs.relation import COMPASS
-    from ..exact import footprints_overlap
-    from ..problem import Problem
-    from ..scene import Scene
+    from ..geometry.exact import footprints_overlap
+    from ..problem.problem import Problem
+    from ..scene.scene import Scene
     from ..solvers import solve
 
     sc: Any = get(name)

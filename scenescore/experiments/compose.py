@@ -40,17 +40,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from ..baselines import NeatNet, NeatNetConfig
+from ..evaluation.baselines import NeatNet, NeatNetConfig
 from ..learn import TrainConfig, train
 from ..scenarios.tv import TVScenario
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 from ..solvers import get, solve
-from ..tasks import Sweep, Task, run_tasks
 from .report import Row, format_table
+from .tasks import Sweep, Task, run_tasks
 
 if TYPE_CHECKING:
     from ..models import ScoreModel
-    from ..problem import Problem
+    from ..problem.problem import Problem
 
 __all__ = [
     "ComposeResult",
@@ -131,7 +131,7 @@ def tv_problem(scene: Scene, model: ScoreModel) -> Problem:
     """A cluttered test scene's problem: energy (television and speakers only) + 10 * hinge collision
     + 10 * bounds, the television and speakers moving."""
     from .. import costs
-    from ..problem import Problem
+    from ..problem.problem import Problem
 
     cost = (
         costs.LearnedEnergy(model, objects=[o.name for o in scene.objects if not o.fixed])
@@ -178,7 +178,7 @@ def run(
     that many worker processes of one thread each (the counts do not depend on it; seconds are summed
     over the workers). ``refine_options``: the :data:`BATCHED` row's ``alm`` options (default
     :data:`REFINE`). ``cache``: a model cache folder (:mod:`scenescore.learn.cache`). ``sweep``: where
-    each seed's record is kept, to resume from (:mod:`scenescore.tasks`)."""
+    each seed's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -399,7 +399,7 @@ def plot_compose(res: ComposeResult, path: str | Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plot import save_figure
+    from ..viz.plot import save_figure
 
     fig, ax = plt.subplots(figsize=(5, 3.5))
     x = [n + 3 for n in res.levels]

@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from ..heatmap import energy_grid, grid_minimum
 from ..learn import TrainConfig, train
-from ..plot import draw_heatmap
+from ..planning.heatmap import energy_grid, grid_minimum
 from ..scenarios import DeskScenario
-from ..tasks import Sweep, Task, run_tasks
+from ..viz.plot import draw_heatmap
 from .report import Row, format_table, over_seeds
+from .tasks import Sweep, Task, run_tasks
 
 __all__ = ["run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES"]
 
@@ -70,7 +70,7 @@ def run(
     """Train on desk scenes per seed (on ``device``; ``cache``: a model cache folder, see
     :mod:`scenescore.learn.cache`), measure the minima; PNGs (seed 0) under ``out`` when given. Each seed
     is a task (``jobs``: worker processes; ``sweep``: where each seed's record is kept, to resume from,
-    and what runs it; :mod:`scenescore.tasks`); ``seconds`` sums the tasks'."""
+    and what runs it; :mod:`scenescore.experiments.tasks`); ``seconds`` sums the tasks'."""
     config = {
         "quick": quick,
         "resolution": resolution,

@@ -17,8 +17,8 @@ from typing import Any, cast
 import numpy as np
 
 from ..costs import Bounds, Displacement, HingeCollision
-from ..problem import Problem
-from ..scene import Scene, SceneError, wrap_angle
+from ..problem.problem import Problem
+from ..scene.scene import Scene, SceneError, wrap_angle
 
 __all__ = ["SIZES", "CHECK_TOL", "CHECK_DEG", "MessyCase", "displaceable", "accepts", "messy_cases"]
 

@@ -15,13 +15,13 @@ from functools import partial
 from typing import Any
 
 from ..encoders import Encoder
-from ..evaluation import MissingCase, OraclePlacer, make_cases, score_cases
+from ..evaluation.cases import MissingCase, OraclePlacer, make_cases, score_cases
 from ..learn import RAW_EDGES, TrainConfig
-from ..placement import Placer, SceneScorePlacer
+from ..planning.placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
-from ..scene import Scene, SceneError
-from ..tasks import Sweep, Task, describe, run_tasks
+from ..scene.scene import Scene, SceneError
 from .report import SeedResults, format_table
+from .tasks import Sweep, Task, describe, run_tasks
 
 __all__ = ["PAPER", "fit_predict", "run", "METHODS", "EXTRA_METHODS"]
 
@@ -37,7 +37,7 @@ PAPER: dict[str, dict[str, float]] = {
 def _methods(
     scenario: DiningScenario, quick: bool, encoder: Encoder | None, device: Any = None, cache: Any = None
 ) -> dict[str, Callable[[], Placer]]:
-    from ..baselines import NearestNeighbour, NeatNet, NeatNetConfig
+    from ..evaluation.baselines import NearestNeighbour, NeatNet, NeatNetConfig
 
     tc = TrainConfig(iterations=150) if quick else TrainConfig()
 
@@ -101,7 +101,7 @@ def run(
     runs each method on each seed in one of that many worker processes of one thread each (the figures
     do not depend on it); with ``scenes_fn`` (a function of this process) they run here, in turn.
     ``cache``: a model cache folder (:mod:`scenescore.learn.cache`). ``sweep``: where each method and
-    seed's record is kept, to resume from (:mod:`scenescore.tasks`)."""
+    seed's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
     table = _methods(DiningScenario(), quick, encoder, device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]

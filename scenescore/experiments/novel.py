@@ -22,15 +22,15 @@ from typing import Any
 import numpy as np
 
 from ..encoders import Encoder
-from ..evaluation import MissingCase, OraclePlacer, make_cases
+from ..evaluation.cases import MissingCase, OraclePlacer, make_cases
 from ..learn import TrainConfig
-from ..placement import Placer, SceneScorePlacer
+from ..planning.placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
-from ..scene import Scene, SceneError
-from ..tasks import Sweep, Task, describe, run_tasks
+from ..scene.scene import Scene, SceneError
 from .missing import fit_predict
 from .report import Row, SeedResults, format_table
+from .tasks import Sweep, Task, describe, run_tasks
 
 __all__ = [
     "PAPER",
@@ -67,7 +67,7 @@ def _methods(
     tc = TrainConfig(iterations=60) if quick else TrainConfig()
 
     def neatnet_r() -> Placer:
-        from ..baselines import NeatNetR
+        from ..evaluation.baselines import NeatNetR
 
         return NeatNetR(epochs=50 if quick else 1500)
 
@@ -84,7 +84,7 @@ def _methods(
 
 def default_methods(log: Callable[[str], None] = print) -> list[str]:
     """:data:`METHODS`, less NeatNet-R when its word embeddings (the ``minilm`` extra) are not installed."""
-    from ..baselines.word_embed import available
+    from ..evaluation.baselines.word_embed import available
 
     if available():
         return list(METHODS)
@@ -190,7 +190,7 @@ def run(
     ``jobs > 1`` runs each method on each seed and rule in one of that many worker processes of one
     thread each (the figures do not depend on it); with ``encoders`` or ``scenes_fn`` (objects of this
     process) they run here, in turn. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`).
-    ``sweep``: where each method, seed and rule's record is kept, to resume from (:mod:`scenescore.tasks`).
+    ``sweep``: where each method, seed and rule's record is kept, to resume from (:mod:`scenescore.experiments.tasks`).
     """
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")

@@ -31,9 +31,9 @@ import numpy as np
 import torch
 
 from ..costs import Bounds, Cost, HingeCollision, LearnedEnergy, Relation
-from ..problem import FEASIBILITY_TOL, Problem
+from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..scenarios.relation_problems import RelationProblem, relation_problems
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 from ..solvers import get as get_solver
 from ..solvers import solve
 from ..solvers.result import best_first

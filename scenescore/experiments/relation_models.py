@@ -31,10 +31,10 @@ from ..costs import Relation
 from ..learn import TrainConfig, train
 from ..models import ScoreModel
 from ..models.ensemble import member_seed
-from ..problem import Problem
+from ..problem.problem import Problem
 from ..scenarios import get
 from ..scenarios.relations import RELATIONS
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 
 __all__ = [
     "EXAMPLES",

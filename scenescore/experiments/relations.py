@@ -10,7 +10,7 @@ the exact non-overlap and bounds checks (:meth:`~scenescore.scenarios.relation_p
 Each relation model is trained on its own examples and kept only when its edge is sharp on examples it
 never saw (:mod:`~scenescore.experiments.relation_models`). The methods, and how each solves a problem,
 are :mod:`~scenescore.experiments.relation_methods`'s. Each seed and size is one task
-(:mod:`scenescore.tasks`): a run's tasks share a model cache, so a seed's models are trained once.
+(:mod:`scenescore.experiments.tasks`): a run's tasks share a model cache, so a seed's models are trained once.
 
 Time per problem is the wall time of solving (and checking) one problem, training not included.
 """
@@ -28,8 +28,7 @@ from typing import TYPE_CHECKING, Any
 from ..learn import TrainConfig, train
 from ..learn.cache import run_cache
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
-from ..scene import SceneError
-from ..tasks import Sweep, Task, run_tasks
+from ..scene.scene import SceneError
 from .relation_methods import (
     HEADINGS,
     LANGEVIN,
@@ -48,6 +47,7 @@ from .relation_methods import (
 )
 from .relation_models import EXAMPLES, PERTURBED, RESTARTS, relation_training, train_config, train_relations
 from .report import SeedResults, format_table, over_seeds
+from .tasks import Sweep, Task, run_tasks
 
 if TYPE_CHECKING:
     from ..models import ScoreModel
@@ -194,7 +194,7 @@ def run(
     scenes, and again at most ``restarts`` times while its edge is flat); ``config``: their training
     (default :func:`train_config`); ``jobs > 1``: the tasks (one per seed and size) in that many worker
     processes (the figures do not depend on it); ``cache``: the model cache folder (default: one for the
-    run alone); ``sweep``: where each task's record is kept, to resume from (:mod:`scenescore.tasks`)."""
+    run alone); ``sweep``: where each task's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
     chosen = methods or list(METHODS)
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -282,7 +282,7 @@ def plot_relations(res: RelationsResult, path: str | Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plot import save_figure
+    from ..viz.plot import save_figure
 
     fig, ax = plt.subplots(figsize=(5, 3.5))
     for k, r in enumerate(res.rows()):

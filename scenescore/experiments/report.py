@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..outputs import atomic_write_text
+from ..scene.outputs import atomic_write_text
 
 __all__ = [
     "RESULTS_FORMAT",
@@ -118,7 +118,7 @@ def experiment_entry(name: str, rows: list[Row], markdown: str, seconds: float) 
 
 def write_document(path: str | Path, entries: list[dict[str, Any]], provenance: dict[str, Any]) -> None:
     """``results.json`` at ``path``, written atomically: ``format``, ``provenance`` (where the figures
-    came from: :func:`scenescore.provenance.collect_provenance`) and ``experiments`` (each an
+    came from: :func:`scenescore.runtime.provenance.collect_provenance`) and ``experiments`` (each an
     :func:`experiment_entry`, in the order they ran)."""
     doc = {"format": RESULTS_FORMAT, "provenance": provenance, "experiments": entries}
     atomic_write_text(path, json.dumps(doc, indent=1) + "\n")

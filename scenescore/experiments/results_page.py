@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..textfiles import loads_json, read_text
+from ..scene.textfiles import loads_json, read_text
 from .report import RESULTS_FORMAT, format_figure
 
 __all__ = [

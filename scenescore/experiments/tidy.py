@@ -6,7 +6,7 @@ a fraction of the bounds' half-extent in a random direction and turned, or two o
 kinds swapped), keeping only messy scenes that are collision-free, inside the bounds and *rejected* by
 the scenario's check. Then, per method:
 
-- ``tidy (effort W)``: :func:`scenescore.tidying.tidy` at each effort weight;
+- ``tidy (effort W)``: :func:`scenescore.planning.tidying.tidy` at each effort weight;
 - ``re-place all``: every movable object placed from scratch by the sampler, no effort term;
 - ``missing placement``: the displaced objects (an oracle says which) placed by ``place``.
 
@@ -31,14 +31,14 @@ import numpy as np
 from ..costs import Displacement
 from ..learn import TrainConfig, train
 from ..models import ScoreModel
-from ..placement import place_many
+from ..planning.placement import place_many
+from ..planning.tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
 from ..scenarios import get
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
-from ..tasks import Codec, Sweep, Task, run_tasks
-from ..tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
 from .messy import SIZES, MessyCase, accepts, displaceable, messy_cases
 from .report import Row, format_table
+from .tasks import Codec, Sweep, Task, run_tasks
 
 __all__ = [
     "SCENARIOS",
@@ -201,7 +201,7 @@ def run(
     pooled. ``jobs > 1`` runs the scenario and seed pairs in that many worker processes of one thread
     each (the figures do not depend on it; each method's seconds are then summed over the workers).
     ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``sweep``: where each pair's record
-    is kept, to resume from (:mod:`scenescore.tasks`)."""
+    is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise SceneError(f"tidy experiment: jobs must be a whole number >= 1, got {jobs!r}")
     seeds = list(seeds)
@@ -370,7 +370,7 @@ def pareto_chart(figures: dict[str, dict[str, float]], efforts: Sequence[float],
     import matplotlib.pyplot as plt
     from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullLocator
 
-    from ..plot import save_figure
+    from ..viz.plot import save_figure
 
     fig, ax = plt.subplots(figsize=(5.6, 4.2))
     pts = [(e, figures[method_name(e)]) for e in efforts]

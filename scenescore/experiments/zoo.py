@@ -25,19 +25,19 @@ from typing import Any, cast
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..evaluation import MissingCase
+from ..evaluation.cases import MissingCase
 from ..learn import TrainConfig, split_validation, train
 from ..models import ScoreModel
 from ..models.layout import BOUND_TOL
 from ..models.trust import energy_per_object
-from ..placement import covering, place_many
+from ..planning.placement import covering, place_many
 from ..scenarios import get
 from ..scenarios.zoo import ROOMS, ZOO
 from ..scenarios.zoo.common import Pose
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
-from ..tasks import Codec, Sweep, Task, run_tasks
 from .report import Row, format_table
+from .tasks import Codec, Sweep, Task, run_tasks
 from .zoo_verdicts import (
     CATASTROPHIC_CM,
     CATASTROPHIC_ORACLE,
@@ -178,7 +178,7 @@ def run_one(
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
     the learned energy alone, the paper's protocol; ``place``: placement options instead of
-    :data:`~scenescore.placement.PLACE`, their candidates covering the bounds as PLACE's do), on
+    :data:`~scenescore.planning.placement.PLACE`, their candidates covering the bounds as PLACE's do), on
     ``device``; ``val``: the fraction of the training scenes held out for validation, as ``scenescore
     train --val`` (default none: the 48 training scenes are the trust reference; holding out train's
     15% left two zoo-bedroom nightstands 84 and 93 cm off, where training on all 48 left none over
@@ -265,7 +265,7 @@ def run(
     ``device``: where the models train and place; ``place``: placement options; ``val``: the validation
     fraction held out of the training scenes; ``cache``: a model cache folder; ``train_scenes``: train
     on that many of the 48 training scenes (12: the small-data variant); :func:`run_one`); ``sweep``:
-    where each pair's record is kept, to resume from (:mod:`scenescore.tasks`).
+    where each pair's record is kept, to resume from (:mod:`scenescore.experiments.tasks`).
 
     ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
     largest scenarios first; each pair's figures do not depend on ``jobs``.

@@ -19,10 +19,10 @@ from typing import Any, cast
 
 import numpy as np
 
-from ..evaluation import MissingCase, assignment, case_errors
+from ..evaluation.cases import MissingCase, assignment, case_errors
 from ..models.layout import touching_bound
 from ..scenarios.zoo.common import Pose
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 
 __all__ = [
     "CATASTROPHIC_CM",

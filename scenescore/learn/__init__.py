@@ -10,7 +10,7 @@
   after another or side by side in worker processes; ``cache.py``: the model cache it may use;
   ``training_state.py``: the state it writes every so often, that a killed run resumes from;
 - ``logs.py``: TensorBoard logs;
-- ``workflow.py``: :func:`~scenescore.learn.workflow.train_model` (``ss.train``), what
+- ``workflow.py``: :func:`~scenescore.workflow.train.train_model` (``ss.train``), what
   ``scenescore train`` does: hold scenes out, train, evaluate, calibrate tidying, report, save (not
   imported here: it sits above the evaluation and the tidy planner, which import this package).
 """

@@ -2,7 +2,7 @@
 
 ``train(..., cache=folder)`` loads the model from there when it was trained before, else trains it and
 keeps it there. The name hashes the scenes, the settings, the seed, the device and the code's version
-(:func:`~scenescore.tasks.code_version`: the package's source and the versions of torch and numpy), so a
+(:func:`~scenescore.runtime.provenance.code_version`: the package's source and the versions of torch and numpy), so a
 folder kept across runs never serves a model that other code trained. ``scenescore experiment all``
 passes one folder to every experiment, so a model two experiments train alike is trained once;
 ``--model-cache DIR`` keeps them for the next run.
@@ -22,8 +22,8 @@ from typing import Any
 import torch
 
 from ..encoders import Encoder
-from ..scene import Scene
-from ..tasks import code_version
+from ..runtime.provenance import code_version
+from ..scene.scene import Scene
 from .config import TrainConfig
 
 __all__ = ["cached_path", "digest", "run_cache"]
@@ -45,7 +45,7 @@ def cached_path(
 ) -> Path | None:
     """The file in ``folder`` for the model of this training: the same scenes, validation scenes,
     settings, seed, device and code (not the thread count, which the weights do not depend on:
-    :mod:`scenescore.threads`). None without a folder, and with an encoder given (a model of another
+    :mod:`scenescore.runtime.threads`). None without a folder, and with an encoder given (a model of another
     encoder is not kept)."""
     if folder is None or encoder is not None:
         return None

@@ -12,8 +12,8 @@ from ..encoders import Encoder, FootprintEncoder
 from ..errors import ConfigError, check_number
 from ..models.ensemble import MAX_MEMBERS
 from ..models.network import WALLS, Activation, EnergyConfig
-from ..sampling import TRAINING, LangevinConfig
-from ..scene import Scene
+from ..scene.scene import Scene
+from ..solvers.kernel import TRAINING, LangevinConfig
 from .data import data_scale, local_radius, stands_against_walls
 
 __all__ = [

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..models.layout import touching_bound
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 
 __all__ = [
     "VALIDATION_FRACTION",

@@ -21,13 +21,13 @@ from typing import Any
 import torch
 from tqdm.auto import tqdm
 
-from ..devices import draw, generator, resolve_device
 from ..encoders import Encoder
 from ..errors import ConfigError, check_number
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
 from ..models.trust import reference
-from ..scene import Scene
-from ..threads import torch_threads
+from ..runtime.devices import draw, generator, resolve_device
+from ..runtime.threads import torch_threads
+from ..scene.scene import Scene
 from .cache import cached_path
 from .config import Derived, TrainConfig, derive
 from .data import check_training_data
@@ -75,14 +75,14 @@ def train(
     bit for bit on the CPU; a state of other scenes, settings, encoder, seed or device is
     refused with a :class:`~scenescore.learn.training_state.StateError` naming the file. The file is
     removed once training ends, unless ``keep_state`` (its last state holds the finished training, so
-    resuming from it trains no more; :func:`~scenescore.learn.workflow.train_model` removes it once the
+    resuming from it trains no more; :func:`~scenescore.workflow.train.train_model` removes it once the
     checkpoint is written).
     ``jobs``: with ``config.members`` of 2 or more, the worker processes the members train in, side by
     side, the ensemble the same whatever their number (None: one per usable core;
     :func:`~scenescore.learn.members.train_members`). Spawned workers import the calling script again,
     so a script that trains with ``jobs`` above 1 keeps its work under ``if __name__ == "__main__":``.
 
-    This is the training alone; :func:`scenescore.learn.workflow.train_model` (``ss.train``) also holds
+    This is the training alone; :func:`scenescore.workflow.train.train_model` (``ss.train``) also holds
     scenes out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
     """
     cfg = config or TrainConfig()

@@ -11,11 +11,12 @@ from dataclasses import replace
 import torch
 import torch.nn.functional as F
 
-from ..devices import generator
+from ..geometry.poses import uniform_init
 from ..models import SceneTensors, ScoreModel
-from ..sampling import TRAINING, langevin, uniform_init
-from ..scene import Scene
-from ..threads import torch_threads
+from ..runtime.devices import generator
+from ..runtime.threads import torch_threads
+from ..scene.scene import Scene
+from ..solvers.kernel import TRAINING, langevin
 from .config import TrainConfig
 
 __all__ = ["ABSENT", "infonce_loss", "energy_l2", "gradient_penalty", "training_loss", "heldout_loss"]

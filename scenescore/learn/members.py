@@ -3,7 +3,7 @@ final model and its cross-validation's folds): their networks one after another 
 
 Each member is the single model of its own seed (:func:`~scenescore.models.ensemble.member_seed`),
 trained on one torch thread, so its weights do not depend on the process it trains in: with ``jobs``
-of 2 or more the networks train side by side in that many worker processes (:mod:`scenescore.workers`)
+of 2 or more the networks train side by side in that many worker processes (:mod:`scenescore.runtime.workers`)
 and each model is the one a single process trains, bit for bit, in about ``1 / jobs`` of the time on
 free cores. Each worker writes its network to a checkpoint (no pickle) that this process reads back.
 """
@@ -21,14 +21,14 @@ from pathlib import Path
 
 import torch
 
-from ..devices import resolve_device
 from ..encoders import Encoder
 from ..errors import ConfigError
 from ..models import ModelInfo, ScoreModel, load
 from ..models.ensemble import EnsembleNet, member_seed, members_of
 from ..models.trust import reference
-from ..scene import Scene
-from ..workers import Log, default_jobs, map_in_workers
+from ..runtime.devices import resolve_device
+from ..runtime.workers import Log, default_jobs, map_in_workers
+from ..scene.scene import Scene
 from .config import TrainConfig, derive
 from .training_state import SAVE_EVERY
 
@@ -63,7 +63,7 @@ def member_state(state: str | os.PathLike, member: int) -> Path:
 def training_jobs(jobs: int | None, tasks: int, device: torch.device) -> int:
     """The worker processes ``tasks`` trainings (an ensemble's members, cross-validation's folds) run in:
     ``jobs``, at most one per task, by default one per usable core
-    (:func:`~scenescore.workers.default_jobs`); 1 (this process) inside a worker process, which cannot
+    (:func:`~scenescore.runtime.workers.default_jobs`); 1 (this process) inside a worker process, which cannot
     start workers of its own."""
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise ConfigError(

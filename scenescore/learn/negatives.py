@@ -15,10 +15,10 @@ from collections.abc import Callable
 
 import torch
 
-from ..devices import draw
-from ..geometry import compose_poses, relative_poses
+from ..geometry.poses import compose_poses, relative_poses, uniform_init
 from ..models import SceneTensors
-from ..sampling import LangevinConfig, langevin, uniform_init
+from ..runtime.devices import draw
+from ..solvers.kernel import LangevinConfig, langevin
 from .config import TrainConfig
 
 __all__ = ["ChainBuffer", "perturbed_negatives", "reanchored_negatives", "log_uniform"]

@@ -26,10 +26,10 @@ from safetensors.torch import save as st_save
 from torch import Tensor
 
 from ..encoders import Encoder
-from ..memory import check as check_memory
 from ..models import CheckpointError, ScoreModel
-from ..outputs import atomic_write_bytes
-from ..scene import Scene
+from ..runtime.memory import check as check_memory
+from ..scene.outputs import atomic_write_bytes
+from ..scene.scene import Scene
 from .cache import digest
 from .config import TrainConfig
 from .negatives import ChainBuffer

@@ -10,7 +10,7 @@ import torch
 from torch import Tensor
 
 from ..encoders import Encoder, encode_scene
-from ..scene import Bounds, Scene, SceneError, SceneObject
+from ..scene.scene import Bounds, Scene, SceneError, SceneObject
 
 __all__ = ["SceneTensors", "batch_scenes", "wall_objects"]
 

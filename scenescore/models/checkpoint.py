@@ -18,8 +18,8 @@ from safetensors import safe_open
 from safetensors.torch import save as st_save
 from torch import Tensor
 
-from ..memory import check as check_memory
-from ..outputs import atomic_write_bytes
+from ..runtime import check_memory
+from ..scene.outputs import atomic_write_bytes
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "CheckpointError", "Checkpoint", "read_checkpoint", "write_checkpoint"]
 

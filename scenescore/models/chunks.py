@@ -12,7 +12,7 @@ import torch
 from torch import Tensor
 from torch.autograd.function import once_differentiable
 
-from .. import threads
+from ..runtime import in_parallel
 
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
@@ -97,7 +97,7 @@ class PoseGradInPieces(torch.autograd.Function):
                 (g,) = torch.autograd.grad(net.readout(p).sum(), poses)
             return p.detach(), g
 
-        done = threads.in_parallel([partial(piece, a) for a in range(0, b, rows)])
+        done = in_parallel([partial(piece, a) for a in range(0, b, rows)])
         pooled, grads = [p for p, _ in done], [g for _, g in done]
         ctx.save_for_backward(torch.cat(grads))
         with torch.no_grad():
@@ -130,7 +130,7 @@ def pooled_in_chunks(net: EnergyNet, rows: int, args: Sequence[Tensor | None]) -
             return _pooled_of(net, _rows_of(args, b, a, a + rows))
 
     work = [partial(piece, a) for a in range(0, b, rows)]
-    return torch.cat(threads.in_parallel(work, _first(args).device.type == "cpu"))
+    return torch.cat(in_parallel(work, _first(args).device.type == "cpu"))
 
 
 def _rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:

@@ -40,8 +40,8 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..outputs import atomic_write_bytes
-from ..scene import Scene, SceneError
+from ..scene.outputs import atomic_write_bytes
+from ..scene.scene import Scene, SceneError
 from .ensemble import EnsembleNet, members_of
 from .model import ScoreModel
 from .network import WALLS, EnergyNet

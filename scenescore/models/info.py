@@ -19,7 +19,7 @@ __all__ = ["ModelInfo", "TidyCalibration", "Caveats"]
 @dataclass
 class TidyCalibration:
     """What a move must gain to be worth its effort, measured on scenes taken as right
-    (``scenescore.tidying.calibrate``). Values are stored as read: the tidy planner checks each before
+    (``scenescore.planning.tidying.calibrate``). Values are stored as read: the tidy planner checks each before
     it uses it (a damaged file may hold anything)."""
 
     move_gain: float | None = None  # a quantile of each scene's best single-move gain

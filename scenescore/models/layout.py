@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..exact import collides, footprint_extents
-from ..geometry import relative_poses
-from ..scene import Scene, SceneObject, wrap_angle
+from ..geometry.exact import collides, footprint_extents
+from ..geometry.poses import relative_poses
+from ..scene.scene import Scene, SceneObject, wrap_angle
 
 __all__ = [
     "ALL_PAIRS",

@@ -10,10 +10,9 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from ..devices import resolve_device
 from ..encoders import Encoder, make_encoder
-from ..memory import check as check_memory
-from ..scene import Scene
+from ..runtime import check_memory, resolve_device
+from ..scene.scene import Scene
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from .ensemble import MAX_MEMBERS, EnsembleNet, members_of
@@ -28,7 +27,7 @@ class ScoreModel(nn.Module):
     """The energy network and its encoder: ``E(poses | scene)``, low for arrangements like the examples.
 
     The model's device (``model.to(device)``, or ``load(path, device=...)``) is where its scenes are
-    encoded to and where the problems built on it run (see :mod:`scenescore.devices`)."""
+    encoded to and where the problems built on it run (see :mod:`scenescore.runtime.devices`)."""
 
     def __init__(self, net: EnergyNet | EnsembleNet, encoder: Encoder, info: ModelInfo | None = None):
         super().__init__()

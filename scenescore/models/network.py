@@ -18,10 +18,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from .. import threads
 from ..errors import ConfigError, check_number
-from ..memory import check as check_memory
-from ..memory import chunk_rows, return_freed_memory
+from ..runtime import check_memory, chunk_rows, return_freed_memory, usable_cores
 from .chunks import ChunkedPooled, PoseGradInPieces, pooled_in_chunks
 from .graph import WALLS, edge_features, neighbour_graph, senders, wall_nodes
 
@@ -153,7 +151,7 @@ def parameter_count(cfg: EnergyConfig) -> int:
 CACHE_EDGES = 49152
 # a batch of two pieces of this many edges or more (pose sets x N x the nodes each reads) is cut into as
 # many pieces of at least this many as the machine has usable cores, which run side by side on the cores
-# other processes leave free (:func:`scenescore.threads.in_parallel`), each on one torch thread: the
+# other processes leave free (:func:`scenescore.runtime.threads.in_parallel`), each on one torch thread: the
 # numbers never depend on the load; smaller pieces would spend more time in Python than in torch
 PIECE_EDGES = 4096
 
@@ -291,7 +289,7 @@ class EnergyNet(nn.Module):
         return n if cfg.neighbours is None else min(n, cfg.neighbours + WALLS * cfg.walls)
 
     def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
-        """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.memory.chunk_rows`). With a
+        """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.runtime.memory.chunk_rows`). With a
         gradient a local graph's batch is cut only as the memory budget needs (its rows grow with ``n``,
         not ``n^2``, and cutting a training batch into chunks runs its forward pass twice: 1.4 times the
         time of a training step of 40 objects, ``python benchmarks/bench_rooms.py``)."""
@@ -339,7 +337,7 @@ class EnergyNet(nn.Module):
         piece = min(rows, max(1, CACHE_EDGES // per_row))
         edges = b * per_row
         if edges >= 2 * PIECE_EDGES:  # enough work to share: a piece for each core, none too small
-            piece = min(piece, -(-b // min(threads.usable_cores(), edges // PIECE_EDGES)))
+            piece = min(piece, -(-b // min(usable_cores(), edges // PIECE_EDGES)))
         if poses.device.type == "cpu" and b > piece:
             if not grad:
                 return self.readout(pooled_in_chunks(self, piece, args))

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..scene import Scene
+from ..scene.scene import Scene
 
 __all__ = ["energy_per_object", "energy_shares", "member_shares", "shares_by_energy"]
 

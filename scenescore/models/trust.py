@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..scene import Scene
-from ..units import length_unit
+from ..scene.scene import Scene
+from ..scene.units import length_unit
 from .layout import (
     BOUND_TOL,
     OVERLAP_TOL,

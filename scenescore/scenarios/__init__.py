@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, Protocol
 
-from ..scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError
 from .desk import DeskScenario
 from .dining import DiningScenario
 from .ordering import OrderingScenario

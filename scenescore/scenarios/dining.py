@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene import Scene, SceneError, SceneObject, wrap_angle
+from ..scene.scene import Scene, SceneError, SceneObject, wrap_angle
 
 __all__ = ["DiningScenario", "CATALOGUE"]
 

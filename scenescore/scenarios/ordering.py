@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ..scene import Scene, SceneError, SceneObject
+from ..scene.scene import Scene, SceneError, SceneObject
 
 __all__ = ["OrderingScenario", "RULES", "TRAIN_LENGTHS", "TEST_LENGTHS", "CUTLERY"]
 

@@ -23,8 +23,8 @@ from itertools import permutations
 
 import numpy as np
 
-from ..exact import footprints_overlap
-from ..scene import Scene, SceneError, SceneObject
+from ..geometry.exact import footprints_overlap
+from ..scene.scene import Scene, SceneError, SceneObject
 from .relations import ALIGNED, BETWEEN, FACING, HALF, RELATIONS, SIDES, TOL
 from .zoo.common import inside_bounds
 

@@ -36,8 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..costs.relation import ROLE_COLOURS, compass
-from ..exact import footprint_extent, footprints_overlap, shapely_core
-from ..scene import Scene, SceneError, SceneObject
+from ..geometry.exact import footprint_extent, footprints_overlap, shapely_core
+from ..scene.scene import Scene, SceneError, SceneObject
 from .zoo.common import inside_bounds
 
 __all__ = [

@@ -16,8 +16,8 @@ from typing import cast
 
 import numpy as np
 
-from ..exact import collides
-from ..scene import Scene, SceneError, SceneObject, wrap_angle
+from ..geometry.exact import collides
+from ..scene.scene import Scene, SceneError, SceneObject, wrap_angle
 
 __all__ = ["TVScenario", "TV_CATALOGUE"]
 
@@ -143,7 +143,7 @@ class TVScenario:
     def correct_many(self, scene: Scene, poses: np.ndarray) -> np.ndarray:
         """:meth:`correct` for each pose set of ``poses (S, N, 3)`` in ``scene``: ``(S,)`` bool."""
         from ..costs import Bounds, HingeCollision
-        from ..problem import Problem
+        from ..problem.problem import Problem
 
         prob = Problem(scene, HingeCollision(margin=0.0) + Bounds())
         out = np.zeros(len(poses), dtype=bool)

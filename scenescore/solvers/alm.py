@@ -45,7 +45,7 @@ from torch import Tensor
 
 from ..costs import ConstraintCost
 from ..errors import ConfigError, check_number
-from ..problem import FEASIBILITY_TOL, Problem
+from ..problem.problem import FEASIBILITY_TOL, Problem
 from .base import StageSolver, start_poses, threads_for
 from .result import Result, Status, best_first, make_result
 
@@ -74,7 +74,7 @@ class ALMOptions:
     step_max: float = 0.1  # the largest move of any coordinate in one step
     polish: bool = True  # keep minimising the objective once feasible; False: a particle stops when feasible
     # torch threads; None: one, with large batches of the learned energy in pieces side by side on the
-    # free cores (scenescore.threads.in_parallel), whose answers never depend on the load
+    # free cores (scenescore.runtime.threads.in_parallel), whose answers never depend on the load
     threads: int | None = None
 
     def __post_init__(self) -> None:

@@ -1,5 +1,5 @@
 """The solver protocol, the base of the built-in stages, and what stages share (start poses, threads:
-:mod:`scenescore.threads`)."""
+:mod:`scenescore.runtime.threads`)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,8 @@ from typing import Any, ClassVar, Protocol
 import torch
 from torch import Tensor
 
-from ..devices import generator
-from ..problem import Problem
-from ..threads import POOL_ROWS, threads_for, torch_threads
+from ..problem.problem import Problem
+from ..runtime import POOL_ROWS, generator, threads_for, torch_threads
 from .result import Result
 
 __all__ = ["Solver", "StageSolver", "start_poses", "POOL_ROWS", "threads_for", "torch_threads"]
@@ -28,7 +27,7 @@ class Solver(Protocol):
 class StageSolver:
     """Base of the built-in solvers: options from keyword arguments (``options_cls``, which has a
     ``threads`` field), and ``solve`` run on that many torch threads; with ``None`` on one, the learned
-    energy's large batches in pieces side by side (:func:`~scenescore.threads.in_parallel`), and the
+    energy's large batches in pieces side by side (:func:`~scenescore.runtime.threads.in_parallel`), and the
     result's ``threads`` is :meth:`default_threads`."""
 
     name: ClassVar[str] = "stage"

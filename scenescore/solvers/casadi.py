@@ -21,7 +21,7 @@ from torch import Tensor
 
 from ..costs.symbolic import SymbolicProblem, casadi_form
 from ..errors import ConfigError, check_number
-from ..problem import Problem
+from ..problem.problem import Problem
 from .base import StageSolver, start_poses
 from .result import Result, Status, make_result
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from torch import Tensor
 
-from ..problem import Problem, ProblemError
+from ..problem.problem import Problem, ProblemError
 from .base import Solver
 from .result import Result, make_result
 

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from ..devices import generator
-from ..problem import Problem
+from ..problem.problem import Problem
+from ..runtime import generator
 from .base import Solver
 from .registry import get
 from .result import Result

@@ -8,7 +8,7 @@ closed-form projections of the cost's constraints (bounds with the footprint's e
 with ``projection="qp"``, by the projection onto the linearised non-overlap constraints. The answer
 is the best particle: the lowest cost among those within the violation tolerance, else the lowest cost;
 with ``trusted_first`` (placement's default), in each group a particle that a guiding term doubts
-(:meth:`~scenescore.problem.Problem.doubted`; the learned energy: one that puts an object where its
+(:meth:`~scenescore.problem.problem.Problem.doubted`; the learned energy: one that puts an object where its
 data never had one, at a bound none comes near or far from the rest) comes after those it does not.
 
 With ``resample=k`` the particles are a population: ``k`` times during the chain they are resampled
@@ -30,12 +30,11 @@ from torch import Tensor
 
 from ..costs.base import stack_sums
 from ..costs.guide import doubt_note
-from ..devices import generator
 from ..errors import ConfigError, check_number
-from ..memory import check as check_memory
-from ..problem import FEASIBILITY_TOL, Problem, ProblemError
-from ..sampling import SAMPLING, LangevinConfig, langevin, screen
+from ..problem.problem import FEASIBILITY_TOL, Problem, ProblemError
+from ..runtime import check_memory, generator
 from .base import StageSolver, threads_for, torch_threads
+from .kernel import SAMPLING, LangevinConfig, langevin, screen
 from .projection import LinearisedProjection
 from .result import Result, Status, best_first, make_result
 
@@ -53,7 +52,7 @@ __all__ = ["LangevinOptions", "LangevinSolver"]
 @dataclass(frozen=True)
 class LangevinOptions:
     """Options of the ``langevin`` solver: the population, its start, projections, threads, and the
-    chain's schedule (a :class:`~scenescore.sampling.LangevinConfig`, default :data:`~scenescore.sampling.SAMPLING`).
+    chain's schedule (a :class:`~scenescore.solvers.kernel.LangevinConfig`, default :data:`~scenescore.solvers.kernel.SAMPLING`).
 
     From YAML or ``ss.solve(..., options={"langevin": {...}})`` the schedule's fields are given flat
     (``steps: 50``) beside the solver's own; :meth:`from_flat` sorts them.
@@ -66,7 +65,7 @@ class LangevinOptions:
     proposals: float = 0.0
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
     # torch threads; None: one, with large batches of the learned energy in pieces side by side on the
-    # free cores (scenescore.threads.in_parallel), whose answers never depend on the load
+    # free cores (scenescore.runtime.threads.in_parallel), whose answers never depend on the load
     threads: int | None = None
     chain: LangevinConfig = SAMPLING
     # the answer: among the feasible particles (else all), those that no guiding term doubts first
@@ -147,7 +146,7 @@ class LangevinSolver(StageSolver):
         return self._run([problem], init, seed)[0]
 
     def check_memory(self, problems: Sequence[Problem], init_rows: int | None = None) -> None:
-        """Raise :class:`~scenescore.memory.MemoryBudgetError` before a population too large for the
+        """Raise :class:`~scenescore.runtime.memory.MemoryBudgetError` before a population too large for the
         memory budget is drawn: ``candidates`` or ``particles`` per problem times its objects."""
         o, n, k = self.options, problems[0].n, len(problems)
         scenes = f" (x {k} problems)" if k > 1 else ""

@@ -15,7 +15,7 @@ import torch
 from torch import Tensor
 
 from ..costs import ConstraintCost
-from ..problem import Problem
+from ..problem.problem import Problem
 
 __all__ = ["LinearisedProjection", "project_cvxpy", "ANGLE_WEIGHT"]
 

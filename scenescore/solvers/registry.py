@@ -11,7 +11,7 @@ import numpy as np
 from torch import Tensor
 
 from ..errors import nearest_name
-from ..problem import Problem, ProblemError
+from ..problem.problem import Problem, ProblemError
 from .alm import ALMSolver
 from .base import Solver
 from .casadi import CasadiSolver

@@ -14,9 +14,9 @@ import torch
 from torch import Tensor
 
 from ..costs.guide import Alternatives, Verdict, guides, verdicts
-from ..outputs import atomic_write_text
-from ..problem import FEASIBILITY_TOL, Problem
-from ..scene import Scene
+from ..problem.problem import FEASIBILITY_TOL, Problem
+from ..scene.outputs import atomic_write_text
+from ..scene.scene import Scene
 
 __all__ = ["Result", "Status", "make_result", "best_first"]
 
@@ -152,7 +152,7 @@ class Result:
 
 def best_first(feasible: Tensor, cost: Tensor, trusted: Tensor | None = None) -> Tensor:
     """The order ``(B,)`` of a population: feasible rows first, then (given ``trusted``) within each group
-    the trusted rows (not :meth:`~scenescore.problem.Problem.doubted`), every group by ``cost`` (not finite:
+    the trusted rows (not :meth:`~scenescore.problem.problem.Problem.doubted`), every group by ``cost`` (not finite:
     last; a stable sort)."""
     key = torch.where(torch.isfinite(cost), cost, torch.full_like(cost, float("inf")))
     order = torch.argsort(key, stable=True)

@@ -23,7 +23,7 @@ import torch
 from torch import Tensor
 
 from ..errors import ConfigError, check_number
-from ..problem import FEASIBILITY_TOL, Problem
+from ..problem.problem import FEASIBILITY_TOL, Problem
 from .base import StageSolver, start_poses
 from .projection import ANGLE_WEIGHT
 from .result import Result, Status, make_result

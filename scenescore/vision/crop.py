@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..scene import Bounds, SceneError, SceneObject
+from ..scene.scene import Bounds, SceneError, SceneObject
 from .pose import MomentPose, pose_from_mask
 from .render import DEFAULT_PPM, render_object, world_to_pixel
 

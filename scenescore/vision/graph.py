@@ -18,7 +18,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..encoders import Encoder
-from ..scene import Bounds, Scene, SceneError, SceneObject
+from ..scene.scene import Bounds, Scene, SceneError, SceneObject
 from .crop import rectify_crop
 from .pose import MomentPose, angle_error, pose_from_mask
 from .render import DEFAULT_PPM, MASK_PREVIEW, image_shape, read_image, render_object, render_scene
@@ -262,7 +262,7 @@ def scenes_from_image_folder(
     index_ppm = None
     index = folder / "dataset.json"
     if index.is_file():
-        from ..textfiles import loads_json, read_text
+        from ..scene.textfiles import loads_json, read_text
 
         data = loads_json(read_text(index, SceneError, "dataset index"), str(index), SceneError)
         index_ppm = data.get("ppm") if isinstance(data, dict) else None

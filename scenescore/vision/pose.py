@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..scene import Bounds, SceneError, wrap_angle
+from ..scene.scene import Bounds, SceneError, wrap_angle
 from .render import pixel_to_world
 
 __all__ = ["MomentPose", "pose_from_mask", "angle_error"]

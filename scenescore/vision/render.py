@@ -19,9 +19,9 @@ from typing import cast
 import cv2
 import numpy as np
 
-from ..memory import check as check_memory
-from ..outputs import atomic_write_bytes, atomic_write_text
-from ..scene import Bounds, Scene, SceneError, SceneObject
+from ..runtime import check_memory
+from ..scene.outputs import atomic_write_bytes, atomic_write_text
+from ..scene.scene import Bounds, Scene, SceneError, SceneObject
 from .sprites import sprite_parts
 
 __all__ = [
@@ -112,7 +112,7 @@ PIPELINE_BYTES = 64
 
 
 def check_image_memory(scene: Scene, ppm: float, shape: tuple[int, int]) -> None:
-    """Raise :class:`~scenescore.memory.MemoryBudgetError` before drawing ``scene`` at ``ppm`` would
+    """Raise :class:`~scenescore.runtime.memory.MemoryBudgetError` before drawing ``scene`` at ``ppm`` would
     exceed the memory budget (the image, one mask per object, the largest object's supersampled window)."""
     pixels = shape[0] * shape[1]
     reach = max((math.hypot(*o.size) for o in scene.objects if o.pose is not None), default=0.0)

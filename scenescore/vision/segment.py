@@ -17,7 +17,7 @@ from typing import Protocol, runtime_checkable
 import cv2
 import numpy as np
 
-from ..scene import SceneError
+from ..scene.scene import SceneError
 
 __all__ = ["Detection", "Detector", "ClassicalDetector", "GroundTruthDetector", "as_detections"]
 

@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..scene import SceneObject
+from ..scene.scene import SceneObject
 
 __all__ = ["SPRITES", "DEFAULT_LOOKS", "Part", "sprite_parts", "has_sprite", "shade"]
 

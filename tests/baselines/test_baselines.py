@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from scenescore.baselines import NeatNetR
-from scenescore.baselines.word_embed import available, minilm
-from scenescore.evaluation import make_cases
+from scenescore.evaluation.baselines import NeatNetR
+from scenescore.evaluation.baselines.word_embed import available, minilm
+from scenescore.evaluation.cases import make_cases
 from scenescore.experiments.novel import position_error_cm
 from scenescore.scenarios import OrderingScenario
 

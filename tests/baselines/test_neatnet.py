@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from scenescore.baselines import NeatNet, NeatNetConfig
+from scenescore.evaluation.baselines import NeatNet, NeatNetConfig
 from scenescore.scenarios.tv import TVScenario
-from scenescore.scene import SceneError
+from scenescore.scene.scene import SceneError
 
 
 @pytest.fixture(scope="module")

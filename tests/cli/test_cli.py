@@ -67,8 +67,8 @@ def test_generate_train_place(trained, capsys):
         assert said in capsys.readouterr().out
     # the paper's protocol places by the energy alone; an overlap left is named by the exact check
     from scenescore.models import load
-    from scenescore.placement import overlapping
-    from scenescore.scene import Scene
+    from scenescore.planning.placement import overlapping
+    from scenescore.scene.scene import Scene
 
     rc = main(["place", str(d / "m.ckpt"), str(d / "q.json"), "--energy-only", "--out", str(d / "e.json")])
     assert rc == 0

@@ -12,8 +12,8 @@ import torch
 
 from scenescore.costs import Bounds, CostFn, HingeCollision, collision
 from scenescore.costs.base import CostError
-from scenescore.problem import Problem
-from scenescore.scene import Scene, SceneObject
+from scenescore.problem.problem import Problem
+from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers import get
 
 pytestmark = pytest.mark.float_order
@@ -193,7 +193,7 @@ def test_rows_below_a_floor_are_exact_and_the_rest_above_it():
 def test_exact_check_skips_only_pairs_that_cannot_touch(margin):
     """``check`` builds shapely geometry only for pairs whose bounding circles come within the margin;
     its violations are those of every pair checked with shapely."""
-    from scenescore.exact import collides, shapely_core
+    from scenescore.geometry.exact import collides, shapely_core
 
     scene = _boxes(7, 3)
     prob = Problem(scene, HingeCollision(margin=margin))
@@ -215,7 +215,7 @@ def test_exact_check_skips_only_pairs_that_cannot_touch(margin):
 
 def test_bounds_check_matches_shapely_extents():
     """The bounds' exact check reads the placed core's vertices; the extents equal shapely's bounds."""
-    from scenescore.exact import placed_core, shapely_core
+    from scenescore.geometry.exact import placed_core, shapely_core
 
     scene = _boxes(5, 4, fixed=0)
     for p in _poses(scene, 8, 6).numpy():

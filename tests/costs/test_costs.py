@@ -18,7 +18,7 @@ from scenescore.costs import (
     ReachLimit,
     Sum,
 )
-from scenescore.scene import Scene, SceneObject
+from scenescore.scene.scene import Scene, SceneObject
 
 
 def _scene() -> Scene:

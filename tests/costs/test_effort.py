@@ -11,9 +11,9 @@ import torch
 
 from scenescore.costs import Anchor, CostError, Displacement, MoveCount
 from scenescore.costs.symbolic import SymbolicProblem, casadi_form
-from scenescore.problem import Problem, ProblemError
-from scenescore.problem_file import load_problem
-from scenescore.scene import Scene, SceneObject
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import Problem, ProblemError
+from scenescore.scene.scene import Scene, SceneObject
 
 
 def _scene() -> Scene:

@@ -12,10 +12,10 @@ import torch
 import scenescore as ss
 from scenescore.costs import CostError, Relation
 from scenescore.learn import NetworkConfig, TrainConfig, train
-from scenescore.problem import ProblemError
-from scenescore.problem_file import load_problem
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import ProblemError
 from scenescore.scenarios import get
-from scenescore.scene import Scene, SceneObject
+from scenescore.scene.scene import Scene, SceneObject
 
 
 def _scene() -> Scene:

@@ -13,7 +13,7 @@ from torch import Tensor
 
 import scenescore as ss
 from scenescore.costs import ConstraintCost, Cost, CostSpec, SpecContext, register_cost_type
-from scenescore.problem_file import load_problem
+from scenescore.problem.files import load_problem
 
 
 class KeepLeftOf(ConstraintCost):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from scenescore.encoders import make_encoder
-from scenescore.scene import SceneError, SceneObject
+from scenescore.scene.scene import SceneError, SceneObject
 
 HAS_OPEN_CLIP = importlib.util.find_spec("open_clip") is not None
 needs_clip = pytest.mark.skipif(

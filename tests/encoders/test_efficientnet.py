@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from scenescore.encoders import available_encoders, make_encoder
-from scenescore.scene import SceneError, SceneObject
+from scenescore.scene.scene import SceneError, SceneObject
 from scenescore.vision import DEFAULT_LOOKS, pose_from_mask, rectify_crop, render_object
 from scenescore.vision.crop import Crop
 

@@ -8,10 +8,10 @@ import torch
 
 from scenescore.cli import main
 from scenescore.experiments import heatmap, novel
-from scenescore.heatmap import energy_grid, grid_minimum
+from scenescore.experiments.tasks import Sweep
 from scenescore.learn import TrainConfig, train
+from scenescore.planning.heatmap import energy_grid, grid_minimum
 from scenescore.scenarios import DeskScenario
-from scenescore.tasks import Sweep
 
 
 def test_novel_oracle_row_is_near_zero():

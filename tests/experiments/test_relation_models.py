@@ -11,7 +11,7 @@ from scenescore.experiments import relation_models as RM
 from scenescore.learn import TrainConfig
 from scenescore.models.ensemble import member_seed
 from scenescore.scenarios import get
-from scenescore.scene import SceneError
+from scenescore.scene.scene import SceneError
 
 TINY = TrainConfig(iterations=2)
 

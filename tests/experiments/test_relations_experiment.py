@@ -19,7 +19,7 @@ from scenescore.scenarios.relation_problems import (
     relation_problem,
     relation_problems,
 )
-from scenescore.scene import Scene, SceneError, SceneObject
+from scenescore.scene.scene import Scene, SceneError, SceneObject
 
 BOUNDS = ((-0.6, -0.4), (0.6, 0.4))
 
@@ -155,8 +155,8 @@ def test_the_tries_are_the_best_particles_by_the_methods_own_cost(tiny_models):
 
 
 def test_each_seed_and_size_is_a_task_and_a_seeds_models_are_trained_once(tmp_path, monkeypatch):
+    from scenescore.experiments.tasks import Sweep
     from scenescore.learn import loop
-    from scenescore.tasks import Sweep
 
     fits = []
     real = loop.fit

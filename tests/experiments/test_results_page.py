@@ -20,7 +20,7 @@ from scenescore.experiments.results_page import (
     render_page,
     replace_readme_table,
 )
-from scenescore.provenance import collect_provenance, git_commit
+from scenescore.runtime.provenance import collect_provenance, git_commit
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -10,14 +10,14 @@ from dataclasses import replace
 import pytest
 
 from scenescore.cli import main
-from scenescore.evaluation import MissingCase
+from scenescore.evaluation.cases import MissingCase
 from scenescore.experiments import missing, zoo
 from scenescore.experiments import tidy as T
+from scenescore.experiments.tasks import Task
 from scenescore.learn import TrainConfig
-from scenescore.sampling import PLACEMENT
+from scenescore.planning.tidying import TidyOptions
+from scenescore.solvers.kernel import PLACEMENT
 from scenescore.solvers.langevin import LangevinOptions
-from scenescore.tasks import Task
-from scenescore.tidying import TidyOptions
 
 # six tasks (two methods, three seeds) that train nothing: a second or so in all
 ARGS = ["experiment", "missing", "--seeds", "3", "--methods", "Nearest-Nbr,Oracle", "--jobs", "1", "--quiet"]

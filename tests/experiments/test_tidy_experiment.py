@@ -6,10 +6,10 @@ from dataclasses import replace
 
 from scenescore.experiments import tidy as T
 from scenescore.learn import TrainConfig
-from scenescore.sampling import PLACEMENT
+from scenescore.planning.tidying import TidyOptions
 from scenescore.scenarios import get
+from scenescore.solvers.kernel import PLACEMENT
 from scenescore.solvers.langevin import LangevinOptions
-from scenescore.tidying import TidyOptions
 
 
 def test_messy_cases_are_feasible_and_rejected_by_the_check():
@@ -64,7 +64,7 @@ def test_run_reports_every_method_and_draws_the_chart(tmp_path):
 def test_worker_processes_give_the_same_outcomes_in_the_order_asked():
     import pytest
 
-    from scenescore.scene import SceneError
+    from scenescore.scene.scene import SceneError
 
     chain = replace(PLACEMENT, steps=2, final_descent=1)
     tiny = LangevinOptions(particles=2, candidates=4, chain=chain)

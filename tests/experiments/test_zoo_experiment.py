@@ -4,7 +4,7 @@ import pytest
 
 from scenescore.experiments import zoo
 from scenescore.learn import TrainConfig
-from scenescore.scene import SceneError
+from scenescore.scene.scene import SceneError
 
 TINY = TrainConfig(iterations=3, batch_scenes=4, negatives=2)
 
@@ -43,7 +43,7 @@ def test_zoo_place_options_reach_every_worker():
     """Placement options given to the zoo replace PLACE's, in one process and in workers alike."""
     from dataclasses import replace
 
-    from scenescore.placement import PLACE
+    from scenescore.planning.placement import PLACE
 
     kw = dict(seeds=1, scenarios=["zoo-hall"], progress=False, log=lambda s: None, config=TINY)
     plain = zoo.run(**kw)
@@ -89,7 +89,7 @@ def test_zoo_room_run_scores_each_chair_by_assignment():
     worst placement the one drawn; a room is named like any scenario."""
     from dataclasses import replace
 
-    from scenescore.placement import PLACE
+    from scenescore.planning.placement import PLACE
 
     tiny_place = replace(PLACE, particles=2, candidates=0, proposals=0.0, chain=replace(PLACE.chain, steps=3))
     one = zoo.run_one("zoo-classroom", 0, TINY, place=tiny_place)

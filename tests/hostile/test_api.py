@@ -13,8 +13,8 @@ import torch
 
 from scenescore.costs import CostError
 from scenescore.errors import ConfigError
-from scenescore.problem import Problem, ProblemError
-from scenescore.scene import Scene, SceneError
+from scenescore.problem.problem import Problem, ProblemError
+from scenescore.scene.scene import Scene, SceneError
 
 from .helpers import SCENE, expect, with_object
 
@@ -88,7 +88,7 @@ OPTIONS = [
 
 
 def _lc(**kw):
-    from scenescore.sampling import LangevinConfig
+    from scenescore.solvers.kernel import LangevinConfig
 
     return LangevinConfig(**kw)
 
@@ -131,8 +131,8 @@ def _get(name, **kw):
 
 def _grid(resolution):
     from scenescore.encoders import make_encoder
-    from scenescore.heatmap import energy_grid
     from scenescore.models import ScoreModel
+    from scenescore.planning.heatmap import energy_grid
 
     m = ScoreModel.create(make_encoder("footprint"), hidden=4, embed_dim=4)
     return energy_grid(m, Scene.from_dict(SCENE), "cup", resolution)
@@ -291,7 +291,7 @@ def test_an_object_that_fits_only_turned_is_placed_turned():
 
 def test_place_with_a_scene_without_unknowns_returns_a_copy(model_path):
     from scenescore.models import load
-    from scenescore.placement import place
+    from scenescore.planning.placement import place
 
     s = Scene.from_dict(with_object(2, pose=[0.3, 0.3, 0.0]))
     out = place(load(model_path), s)
@@ -300,7 +300,7 @@ def test_place_with_a_scene_without_unknowns_returns_a_copy(model_path):
 
 def test_place_particles_zero_is_refused(model_path):
     from scenescore.models import load
-    from scenescore.placement import PLACE, place
+    from scenescore.planning.placement import PLACE, place
 
     expect(
         lambda: place(load(model_path), Scene.from_dict(SCENE), replace(PLACE, particles=0)),

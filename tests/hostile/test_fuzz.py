@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from scenescore.costs import CostError
 from scenescore.errors import ConfigError
 from scenescore.models import CheckpointError
-from scenescore.problem import ProblemError
-from scenescore.problem_file import load_problem
-from scenescore.scene import Scene, SceneError
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import ProblemError
+from scenescore.scene.scene import Scene, SceneError
 
 from .helpers import SCENE
 

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 from scenescore.scenarios import available, get
-from scenescore.scene import read_jsonl, write_jsonl
+from scenescore.scene.scene import read_jsonl, write_jsonl
 
 from .helpers import cli_error, run_cli, write
 

@@ -11,7 +11,7 @@ import pytest
 
 from scenescore.encoders import encode_scene, make_encoder
 from scenescore.learn import check_training_data
-from scenescore.scene import Scene, SceneError
+from scenescore.scene.scene import Scene, SceneError
 from scenescore.vision.graph import scenes_from_image_folder
 
 from .helpers import cli_error, expect, with_object, write

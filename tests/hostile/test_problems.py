@@ -7,8 +7,8 @@ import shutil
 
 import pytest
 
-from scenescore.problem import ProblemError
-from scenescore.problem_file import load_problem
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import ProblemError
 
 from .helpers import SCENE, expect, write
 

@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from scenescore.scene import Scene, SceneError, read_jsonl
+from scenescore.scene.scene import Scene, SceneError, read_jsonl
 
 from .helpers import SCENE, expect, scene, with_object, write
 
@@ -243,7 +243,7 @@ def test_nan_pose_is_not_written(tmp_path):
 
 
 def test_inf_size_is_not_written_to_jsonl(tmp_path):
-    from scenescore.scene import write_jsonl
+    from scenescore.scene.scene import write_jsonl
 
     s = Scene.from_dict(SCENE)
     s.objects[1].size = (math.inf, 0.1)

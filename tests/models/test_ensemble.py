@@ -20,7 +20,7 @@ from scenescore.learn import NetworkConfig, TrainConfig, train
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
 from scenescore.models.trust import assess, member_shares
-from scenescore.placement import PLACE
+from scenescore.planning.placement import PLACE
 
 CFG = TrainConfig(iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
 SEED = 3
@@ -157,7 +157,7 @@ def test_jobs_must_be_a_whole_number_of_processes(scenes, jobs):
 def test_cross_validation_folds_in_worker_processes_report_the_same(scenes):
     """The folds of cross-validation run side by side in worker processes with the report one process
     gives."""
-    from scenescore.learn.crossval import cross_validate
+    from scenescore.workflow.crossval import cross_validate
 
     one, two = (
         cross_validate(scenes[:6], CFG, 2, seed=SEED, progress=False, say=lambda line: None, jobs=j)

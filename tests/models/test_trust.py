@@ -12,7 +12,7 @@ from conftest import rounding_tolerance
 import scenescore as ss
 from scenescore.learn import NetworkConfig, TrainConfig, train
 from scenescore.models.trust import TrustReference, assess, energy_shares
-from scenescore.placement import PLACE, place
+from scenescore.planning.placement import PLACE, place
 
 SMALL = replace(PLACE, particles=16, candidates=256, chain=replace(PLACE.chain, steps=20, final_descent=10))
 
@@ -133,7 +133,7 @@ def test_an_object_farther_from_every_object_of_a_category_than_the_data_is_flag
     ``apart`` (naming the knife, in the scene's unit), doubted by ``outside_data``, and the data's own
     scenes not."""
     from scenescore.models.trust import outside_data
-    from scenescore.units import length_unit
+    from scenescore.scene.units import length_unit
 
     model, tr, te = dining
     ref = model.trust
@@ -287,9 +287,9 @@ def _two_objects(pose_b: tuple[float, float, float], size: tuple[float, float] =
 
 
 def test_relations_hold_each_pose_in_the_frame_of_each_other_object():
-    from scenescore.geometry import relative_poses
+    from scenescore.geometry.poses import relative_poses
     from scenescore.models.layout import relations
-    from scenescore.scene import wrap_angle
+    from scenescore.scene.scene import wrap_angle
 
     s = _two_objects((0.5, 0.3, -2.9))
     rel = relations([s], length=0.25)
@@ -360,7 +360,7 @@ def test_training_stores_relations_of_the_training_scenes_only(dining):
 
 
 def test_proposed_candidates_sit_where_the_data_puts_the_object_beside_a_known_one(dining):
-    from scenescore.geometry import compose_poses
+    from scenescore.geometry.poses import compose_poses
 
     model, _, te = dining
     scene = te[0].without("fork_0")

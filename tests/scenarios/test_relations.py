@@ -11,7 +11,7 @@ from shapely.geometry import Polygon, box
 from scenescore.cli import main
 from scenescore.scenarios import RelationScenario, available, get
 from scenescore.scenarios.relations import BETWEEN, FACING, NEAR, RELATIONS, TOL
-from scenescore.scene import Scene, SceneError, SceneObject, read_jsonl
+from scenescore.scene.scene import Scene, SceneError, SceneObject, read_jsonl
 
 
 def _scene(*poses, sizes=None, shapes=None) -> Scene:

@@ -7,7 +7,7 @@ import pytest
 
 from scenescore.scenarios import DeskScenario, OrderingScenario, TVScenario, get
 from scenescore.scenarios.ordering import TEST_LENGTHS, TRAIN_LENGTHS
-from scenescore.scene import SceneError
+from scenescore.scene.scene import SceneError
 
 
 @pytest.mark.parametrize("rule", ["class_size", "all_size", "unseen_class"])

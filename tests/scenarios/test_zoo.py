@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
-from scenescore.evaluation import assignment
+from scenescore.evaluation.cases import assignment
 from scenescore.scenarios import ZOO, available, get
 from scenescore.scenarios.zoo import (
     ROOMS,
@@ -28,7 +28,7 @@ from scenescore.scenarios.zoo import (
     PcbScenario,
     WorkstationScenario,
 )
-from scenescore.scene import Scene, SceneError
+from scenescore.scene.scene import Scene, SceneError
 
 
 @cache

@@ -10,9 +10,9 @@ import pytest
 import torch
 
 from scenescore.costs import Bounds, HingeCollision, PoseTarget
-from scenescore.problem import Problem, ProblemError
-from scenescore.problem_file import load_problem
-from scenescore.scene import Scene, SceneObject
+from scenescore.problem.files import load_problem
+from scenescore.problem.problem import Problem, ProblemError
+from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers import available, get, option_names, solve
 from scenescore.solvers.alm import ALMOptions, ALMSolver
 

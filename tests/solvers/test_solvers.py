@@ -11,10 +11,10 @@ import torch
 import scenescore as ss
 from scenescore.costs import Bounds, CostFn, HingeCollision, PoseTarget
 from scenescore.errors import ConfigError
-from scenescore.problem import Problem, ProblemError
-from scenescore.sampling import LangevinConfig
-from scenescore.scene import Scene, SceneObject
+from scenescore.problem.problem import Problem, ProblemError
+from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers import available, get, option_names, solve
+from scenescore.solvers.kernel import LangevinConfig
 from scenescore.solvers.projection import LinearisedProjection, project_cvxpy
 from scenescore.solvers.sqp import SQPOptions
 
@@ -203,7 +203,7 @@ def test_casadi_solves_a_local_graph_model_through_torch():
     ).double()
     scene = ss.scenarios.get("dining").generate(1, 0)[0]  # 8 objects: lists of 3 leave some out
     name = scene.objects[0].name
-    p = ss.placement.placement_problem(model, scene.without(name), energy_only=True)
+    p = ss.planning.placement.placement_problem(model, scene.without(name), energy_only=True)
     x0 = p.full(scene.poses())
     r = solve(p, "casadi", init=x0)
     with torch.no_grad():

@@ -11,7 +11,7 @@ import pytest
 import scenescore as ss
 from scenescore.encoders import make_encoder
 from scenescore.encoders.image import ImageEncoder
-from scenescore.scene import Scene, SceneError, SceneObject
+from scenescore.scene.scene import Scene, SceneError, SceneObject
 from scenescore.vision import (
     DEFAULT_LOOKS,
     TABLE_COLOR,

@@ -8,7 +8,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ...scene import Scene, SceneObject
+from ...scene.scene import Scene, SceneObject
 from .common import (
     Layout,
     Pose,

@@ -8,7 +8,7 @@ from typing import ClassVar, cast
 
 import numpy as np
 
-from ...scene import Scene, SceneError, SceneObject
+from ...scene.scene import Scene, SceneError, SceneObject
 from .common import (
     Colour,
     Layout,

@@ -8,16 +8,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from ...scene import Scene
-from .common import (
-    FreeSlotScenario,
-    Layout,
-    Pose,
-    clipped_noise,
-    in_frame,
-    jitter,
-    make_object,
-)
+from ...scene.scene import Scene
+from .common import FreeSlotScenario, Layout, Pose, clipped_noise, in_frame, jitter, make_object
 
 __all__ = ["ClassroomScenario"]
 

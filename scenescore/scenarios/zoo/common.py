@@ -1,7 +1,7 @@
 """What every zoo scenario shares: poses in a frame, clipped noise, objects, the validity checks, the
 oracles' look-ups, and :class:`ZooScenario`, the base class that draws, redraws and splits.
 
-The footprint geometry (extents, overlap) is :mod:`scenescore.exact`'s, the one numpy/shapely form
+The footprint geometry (extents, overlap) is :mod:`scenescore.geometry.exact`'s, the one numpy/shapely form
 the costs' exact checks also use.
 """
 
@@ -13,8 +13,8 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 
-from ...exact import footprint_extent, footprints_overlap
-from ...scene import Bounds, Scene, SceneError, SceneObject, wrap_angle
+from ...geometry.exact import footprint_extent, footprints_overlap
+from ...scene.scene import Bounds, Scene, SceneError, SceneObject, wrap_angle
 
 __all__ = [
     "Pose",

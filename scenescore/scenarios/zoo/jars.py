@@ -7,7 +7,7 @@ from typing import ClassVar, cast
 
 import numpy as np
 
-from ...scene import Scene, SceneError
+from ...scene.scene import Scene, SceneError
 from .common import (
     Colour,
     Layout,

@@ -8,7 +8,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ...scene import Scene, wrap_angle
+from ...scene.scene import Scene, wrap_angle
 from .common import (
     Layout,
     Pose,

@@ -1,0 +1,245 @@
+"""The one Langevin kernel: batched projected Langevin dynamics over object poses.
+
+Training's counter-examples, placement and the ``langevin`` solver all run :func:`langevin` with a
+:class:`LangevinConfig`; each use has one named default (:data:`TRAINING`, :data:`PLACEMENT`,
+:data:`SAMPLING`).
+
+``x_t = x_{t-1} - lambda_t (grad E(x_{t-1}) + w_t)``, ``w_t ~ N(0, sigma^2)``, with a polynomially decaying
+step size, run in normalised coordinates (positions scaled by the bounds' half-extent, angles by pi) so
+that one step size suits both. Objects that are not movable never move; after every step movable
+objects are projected back inside their bounds (and through an optional user projection).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+from ..errors import check_number
+from ..runtime import draw
+from ..runtime import generator as make_generator
+
+__all__ = [
+    "LangevinConfig",
+    "TRAINING",
+    "PLACEMENT",
+    "SAMPLING",
+    "langevin",
+    "best_of",
+    "screen",
+    "resample",
+    "finite_or_inf",
+    "sweep_headings",
+]
+
+
+MAX_STEPS = 1_000_000  # a chain longer than this is a typo, not a plan
+MAX_HEADINGS = 3600  # a heading sweep finer than a tenth of a degree is a typo, not a plan
+
+
+@dataclass(frozen=True)
+class LangevinConfig:
+    """Settings of :func:`langevin` (defaults after implicit behaviour cloning, tuned here).
+
+    Vary one with :func:`dataclasses.replace`, e.g. ``replace(PLACEMENT, steps=30)``.
+    """
+
+    steps: int = 100
+    step_init: float = 0.05  # lambda_0, in normalised units per unit gradient
+    step_final: float = 1e-3  # lambda_T
+    power: float = 2.0  # polynomial decay exponent
+    noise: float = 1.0  # sigma of w_t
+    max_delta: float = 0.1  # clip on one step's move per coordinate at lambda_0 (normalised units)
+    final_descent: int = 0  # noise-free gradient steps at lambda_T after the chain
+    resample: int = 0  # population resampling points, evenly spaced in the chain (0: independent chains)
+    temperature: float = 1.0  # of the resampling weights softmax(-E / temperature)
+    # before the final descent, each moving object's heading in turn becomes the lowest-energy of its
+    # own and this many evenly spaced ones (0: none): a narrow basin in the heading (an object turned to
+    # face another) is found wherever the chain left the heading, not only from nearby
+    heading_sweep: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "final_descent", "resample"):
+            check_number("langevin", name, getattr(self, name), 0, MAX_STEPS, integer=True)
+        check_number("langevin", "heading_sweep", self.heading_sweep, 0, MAX_HEADINGS, integer=True)
+        for name, zero_ok in (
+            ("temperature", False),
+            ("step_init", False),
+            ("step_final", False),
+            ("max_delta", False),
+            ("noise", True),
+            ("power", True),
+        ):
+            check_number("langevin", name, getattr(self, name), 0, open_lo=not zero_ok)
+
+    def step_size(self, t: int | Tensor) -> float | Tensor:
+        """``lambda_t``, decaying from ``step_init`` to ``step_final`` over ``steps`` (then constant)."""
+        span = max(self.steps - 1, 1)
+        if isinstance(t, Tensor):
+            frac_t = (1.0 - t.clamp(max=self.steps - 1) / span).clamp(min=0.0)
+            return (self.step_init - self.step_final) * frac_t**self.power + self.step_final
+        frac = max(1.0 - min(t, self.steps - 1) / span, 0.0)
+        return (self.step_init - self.step_final) * frac**self.power + self.step_final
+
+    def clip(self, lam: float | Tensor) -> float | Tensor:
+        """The move clip at step size ``lam``: it shrinks with the step size, so that a sharp energy
+        (large gradients, every step clipped) still lets the chain settle into its minimum."""
+        return self.max_delta * lam / self.step_init
+
+
+#: counter-examples in training: persistent chains advanced a few steps per iteration, no final descent
+TRAINING = LangevinConfig(steps=60, step_init=0.05, step_final=5e-4, noise=1.0)
+#: placing objects whose pose is unknown (``place``): a shorter chain, then a noise-free descent
+PLACEMENT = LangevinConfig(steps=60, step_init=0.05, step_final=5e-4, noise=1.0, final_descent=20)
+#: sampling whole arrangements with the ``langevin`` solver
+SAMPLING = LangevinConfig(steps=100, step_init=0.05, step_final=1e-3, noise=1.0, final_descent=20)
+
+
+def screen(energy_fn: Callable[[Tensor], Tensor], draws: Tensor, keep: int, chunk: int = 1024) -> Tensor:
+    """The ``keep`` of ``draws (M, N, 3)`` with the lowest energy (forward passes only, in chunks): ``(keep, N, 3)``."""
+    return draws[_energies(energy_fn, draws, chunk).argsort()[:keep]]
+
+
+def finite_or_inf(e: Tensor) -> Tensor:
+    """NaN and -inf energies become +inf, so that no ranking or weighting ever prefers them."""
+    return torch.where(torch.isfinite(e), e, torch.full_like(e, float("inf")))
+
+
+def _energies(energy_fn: Callable[[Tensor], Tensor], x: Tensor, chunk: int) -> Tensor:
+    with torch.no_grad():
+        e = torch.cat([energy_fn(x[i : i + chunk]) for i in range(0, len(x), chunk)])
+    return finite_or_inf(e)
+
+
+def resample(x: Tensor, e: Tensor, temperature: float, groups: int, generator: torch.Generator) -> Tensor:
+    """Systematic resampling of particles ``x (G * P, ...)`` within each contiguous group of ``P`` by
+    weights ``softmax(-e / temperature)``: particles in low-cost basins are copied, the rest dropped."""
+    p = x.shape[0] // groups
+    e = finite_or_inf(e.reshape(groups, p))
+    w = torch.softmax(-(e - e.min(dim=1, keepdim=True).values) / temperature, dim=1)  # (G, P)
+    offsets = torch.arange(p, dtype=w.dtype, device=w.device)
+    u = (draw("rand", (groups, 1), generator, w.device, w.dtype) + offsets) / p
+    idx = torch.searchsorted(torch.cumsum(w, dim=1), u).clamp(max=p - 1)  # (G, P)
+    return x[(idx + p * torch.arange(groups, device=idx.device)[:, None]).flatten()]
+
+
+def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> tuple[Tensor, Tensor]:
+    with torch.enable_grad():
+        x = x.detach().requires_grad_(True)
+        e = energy_fn(x)
+        (g,) = torch.autograd.grad(e.sum(), x)
+    if not torch.isfinite(g).all():
+        raise FloatingPointError(
+            "Langevin: the energy's gradient is not finite (NaN or inf) at some particle"
+        )
+    return e.detach(), g
+
+
+def langevin(
+    energy_fn: Callable[[Tensor], Tensor],
+    init: Tensor,
+    movable: Tensor,
+    lo: Tensor,
+    hi: Tensor,
+    cfg: LangevinConfig | None = None,
+    generator: torch.Generator | None = None,
+    project: Callable[[Tensor], Tensor] | None = None,
+    age: Tensor | None = None,
+    run_steps: int | None = None,
+    groups: int = 1,
+) -> tuple[Tensor, Tensor]:
+    """Run the chain from ``init (B, N, 3)``; returns final poses and their energies ``(B,)``.
+
+    ``movable``: ``(N,)`` or ``(B, N)`` bool; ``lo``/``hi``: ``(2,)`` or ``(B, 2)`` position bounds.
+    ``age``: ``(B,)`` steps each chain has already run (persistent chains continue their schedule);
+    ``run_steps``: how many steps to run now (default ``cfg.steps``, the schedule's length).
+    ``groups``: particles form this many contiguous groups (one per scene) for ``cfg.resample``.
+    No gradient flows through the chain. Everything runs on the device of ``init``; ``generator`` (default:
+    seed 0 on that device) draws the noise.
+    """
+    cfg = cfg or LangevinConfig()
+    if generator is None:
+        generator = make_generator(0, init.device)
+    x = init.detach().clone()
+    b, n, _ = x.shape
+    dtype = x.dtype
+    lo = lo.to(dtype).reshape(-1, 1, 2).expand(b, 1, 2)
+    hi = hi.to(dtype).reshape(-1, 1, 2).expand(b, 1, 2)
+    half = (hi - lo) / 2  # (B, 1, 2)
+    pi = torch.full((b, 1, 1), math.pi, dtype=dtype, device=x.device)
+    scale = torch.cat([half, pi], dim=-1)  # (B, 1, 3)
+    move_b = movable.reshape(-1, n).expand(b, n)[..., None].bool()  # (B, N, 1)
+
+    def step(x: Tensor, lam: float | Tensor, noise: float) -> Tensor:
+        _, g = _grad(energy_fn, x)
+        gn = g * scale  # gradient in normalised coordinates
+        w = draw("randn", tuple(x.shape), generator, x.device, dtype) * noise if noise > 0 else 0.0
+        clip = torch.as_tensor(cfg.clip(lam), dtype=dtype, device=x.device)
+        delta = torch.maximum(torch.minimum(lam * (gn + w), clip), -clip)
+        moved = x - delta * scale
+        moved = torch.cat(
+            [
+                torch.minimum(torch.maximum(moved[..., :2], lo), hi),
+                torch.remainder(moved[..., 2:] + math.pi, 2 * math.pi) - math.pi,
+            ],
+            dim=-1,
+        )
+        x = torch.where(move_b, moved, x)  # fixed objects never move, not even by projection
+        if project is not None:
+            x = project(x)
+        return x
+
+    total = cfg.steps if run_steps is None else run_steps
+    if cfg.resample and age is not None:
+        raise ValueError("langevin: population resampling needs one schedule for all chains (age=None)")
+    marks = {round(total * (k + 1) / (cfg.resample + 1)) for k in range(cfg.resample)}
+    for t in range(total):
+        if t in marks:
+            with torch.no_grad():
+                x = resample(x, energy_fn(x), cfg.temperature, groups, generator)
+        if age is None:
+            lam: float | Tensor = cfg.step_size(t)
+        else:
+            lam = torch.as_tensor(cfg.step_size((age + t).to(dtype))).reshape(b, 1, 1)  # per-chain schedule
+        x = step(x, lam, cfg.noise)
+    if cfg.heading_sweep:
+        x = sweep_headings(energy_fn, x, move_b[..., 0], cfg.heading_sweep)
+        if project is not None:
+            x = project(x)
+    for _ in range(cfg.final_descent):
+        x = step(x, cfg.step_final, 0.0)
+    with torch.no_grad():
+        e = energy_fn(x)
+    return x.detach(), e.detach()
+
+
+def sweep_headings(energy_fn: Callable[[Tensor], Tensor], x: Tensor, movable: Tensor, k: int) -> Tensor:
+    """``x (B, N, 3)`` with each object that ``movable (B, N)`` moves, in turn, turned to the
+    lowest-energy of its current heading and ``k`` evenly spaced ones from -pi (ties keep the current
+    one): one energy call of ``B * (k + 1)`` rows per object."""
+    b, n, _ = x.shape
+    angles = torch.linspace(-math.pi, math.pi, k + 1, dtype=x.dtype, device=x.device)[:-1]
+    rows = torch.arange(b, device=x.device)
+    with torch.no_grad():
+        for i in range(n):
+            if not bool(movable[:, i].any()):
+                continue
+            cand = x[:, None].repeat(1, k + 1, 1, 1)  # (B, k + 1, N, 3); candidate 0 keeps the heading
+            cand[:, 1:, i, 2] = angles
+            e = finite_or_inf(energy_fn(cand.reshape(b * (k + 1), n, 3)).reshape(b, k + 1))
+            turned = cand[rows, e.argmin(dim=1)]
+            x = torch.where(movable[:, i, None, None], turned, x)
+    return x
+
+
+def best_of(poses: Tensor, energies: Tensor, groups: int) -> tuple[Tensor, Tensor]:
+    """Best particle per group: ``poses (G * P, N, 3)`` in contiguous groups -> ``(G, N, 3)``, ``(G,)``."""
+    p = poses.shape[0] // groups
+    e = finite_or_inf(energies.reshape(groups, p))
+    idx = e.argmin(dim=1)
+    rows = torch.arange(groups, device=idx.device)
+    return poses.reshape(groups, p, *poses.shape[1:])[rows, idx], e[rows, idx]

@@ -1,0 +1,241 @@
+"""The training workflow, as ``scenescore train`` runs it and ``ss.train`` returns it (:func:`train_model`).
+
+Hold scenes out, train on the rest, refuse a model that learned nothing, evaluate on the held-out
+scenes (with little data: train on every scene and cross-validate, :mod:`~scenescore.workflow.crossval`),
+draw the learning curve, calibrate what a tidying move must gain, save the checkpoint and the report.
+The command line only reads its files and calls :func:`train_model`, so the model a script gets from
+``ss.train(scenes, seed=s)`` is the one ``scenescore train data.jsonl --seed s`` saves.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from ..encoders import Encoder
+from ..evaluation.report import EvalReport, evaluate
+from ..learn.config import TrainConfig
+from ..learn.data import VALIDATION_FRACTION, split_validation
+from ..learn.logs import log_validation
+from ..learn.loop import check_run, train
+from ..learn.members import Group, Run, member_state, train_groups
+from ..learn.training_state import SAVE_EVERY
+from ..models import ScoreModel
+from ..planning.tidying import calibrate, count_weight
+from ..scene.outputs import atomic_write_text
+from ..scene.scene import Scene, write_jsonl
+from ..viz.plot import training_figure
+from .crossval import folds_for, train_and_cross_validate
+
+__all__ = ["NothingLearned", "holdout", "train_model"]
+
+Log = Callable[[str], None]
+TIDY_SCENES = 16  # training scenes calibrated on when none are held out
+
+
+class NothingLearned(ValueError):
+    """The training loss never fell below chance: the model tells the data from its counter-examples no
+    better than a constant energy does."""
+
+    def __init__(self, final_loss: float, chance_loss: float):
+        self.final_loss, self.chance_loss = final_loss, chance_loss
+        super().__init__(
+            f"the training loss ({final_loss:.3f}) never fell below chance ({chance_loss:.3f}): the model "
+            "learned nothing; train longer (TrainConfig.iterations) or pass force=True to keep it anyway"
+        )
+
+
+def holdout(
+    scenes: Sequence[Scene],
+    fraction: float = VALIDATION_FRACTION,
+    heldout: Sequence[Scene] | None = None,
+    seed: int = 0,
+) -> tuple[list[Scene], list[Scene]]:
+    """``(train, held_out)``: every scene and ``heldout`` when given; else about ``fraction`` of the scenes
+    held out (:func:`~scenescore.learn.data.split_validation`, chosen by ``seed``), except that fewer than
+    six scenes are all trained on, with a warning (four held out would leave fewer than two)."""
+    if heldout is not None:
+        return list(scenes), list(heldout)
+    if fraction > 0 and len(scenes) < 6:
+        print(
+            f"warning: {len(scenes)} scenes are too few to hold out 4 for validation and train on 2; "
+            "training on all of them without validation (give held-out scenes with --val-data)",
+            file=sys.stderr,
+        )
+        return list(scenes), []
+    return split_validation(scenes, fraction, seed=seed)
+
+
+def train_model(
+    scenes: Sequence[Scene],
+    config: TrainConfig | None = None,
+    *,
+    encoder: Encoder | None = None,
+    seed: int = 0,
+    heldout: Sequence[Scene] | None = None,
+    fraction: float = VALIDATION_FRACTION,
+    out: str | os.PathLike | None = None,
+    report: str | os.PathLike | None = None,
+    plot: str | os.PathLike | None = None,
+    force: bool = False,
+    log_dir: str | os.PathLike | None = None,
+    device: str | torch.device | None = None,
+    progress: bool = True,
+    log: Log | None = print,
+    source: str | os.PathLike | None = None,
+    state: str | os.PathLike | None = None,
+    resume: bool = False,
+    save_every: int = SAVE_EVERY,
+    folds: int | None = None,
+    jobs: int | None = 1,
+) -> ScoreModel:
+    """Train a model on ``scenes`` as ``scenescore train`` does, and return it evaluated and calibrated.
+
+    ``heldout``: scenes to validate on (every scene of ``scenes`` is then trained on); else ``fraction``
+    of ``scenes`` is held out by ``seed`` (:func:`holdout`), or, with ``folds`` of 2 or more (by default
+    with fewer than :data:`~scenescore.workflow.crossval.CROSS_VALIDATE_BELOW` scenes), the model is
+    trained on every scene and validated by ``folds``-fold cross-validation, each fold's model trained
+    with ``config`` and ``seed`` (``folds=1``: one hold-out whatever the data's size). The held-out
+    scenes become the trust reference, are placed back object by object (the figures in
+    ``model.info.validation``) and calibrate tidying (``model.info.tidy``; without held-out scenes, the
+    first :data:`TIDY_SCENES` training ones).
+    A model whose loss never fell below chance raises :class:`NothingLearned` unless ``force``.
+    ``out``: the checkpoint to write, with ``report`` (default ``train_report.json`` beside it) and, for
+    held-out scenes split here, ``<out stem>.val.jsonl``; ``plot``: the learning curve and a few
+    held-out placements. ``log``: where the summary lines go (None: nowhere); ``source``: where
+    ``scenes`` were read from, named in the line that says how to evaluate the model again.
+    ``log_dir``, ``device``, ``progress``, ``encoder``, ``state``, ``resume``, ``save_every``, ``jobs``: as
+    for :func:`~scenescore.learn.loop.train` (with folds, ``jobs`` worker processes train the final
+    model's networks and the folds' side by side in one pool:
+    :func:`~scenescore.workflow.crossval.train_and_cross_validate`); the training state is kept until the
+    checkpoint is written.
+    """
+    cfg = config or TrainConfig()
+    say: Log = log or (lambda line: None)
+    out_path = None if out is None else Path(out)
+    check_run(scenes, save_every, state, resume)
+    k = folds_for(len(scenes), folds, fraction, heldout is not None)
+    train_s, held = (list(scenes), []) if k else holdout(scenes, fraction, heldout, seed)
+    # keep_state: a run killed before the checkpoint is written resumes with no more training
+    run = Run(encoder, progress, held, log_dir, device, None, state, resume, save_every, keep_state=True)
+    if k:  # the final model and the folds' models train side by side
+        say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
+        final, folded = train_and_cross_validate(scenes, cfg, k, run, seed=seed, say=say, jobs=jobs)
+        assert final is not None
+        model = final
+    else:
+        model = train_groups(train, [Group(train_s, run)], cfg, seed, jobs)[0]
+    info = model.info
+    assert info.final_loss is not None and info.chance_loss is not None  # set by training
+    took = f"in {info.seconds:.0f} s"
+    if cfg.members > 1:  # the members' times summed: they may have trained side by side
+        took = f"as {cfg.members} members, {info.seconds:.0f} s of training in all"
+    say(
+        f"trained on {info.scenes} scenes {took} "
+        f"(final loss {info.final_loss:.3f}, chance {info.chance_loss:.3f})"
+    )
+    if not info.final_loss < info.chance_loss and not force:
+        raise NothingLearned(info.final_loss, info.chance_loss)
+    record: dict[str, Any] = {"checkpoint": None if out_path is None else str(out_path)}
+    record["training"] = info.training()
+    examples: list[Any] = []
+    if held:
+        ev = evaluate(model, held, train_s, seed=seed, progress=progress)
+        examples = _adopt(model, ev, record, log_dir, cfg, say)
+        if heldout is None and out_path is not None:
+            _write_heldout(held, out_path, record, seed, source, say)
+    elif k:
+        examples = _adopt(model, folded, record, log_dir, cfg, say)
+    if plot is not None:
+        training_figure(info.history or [], info.chance_loss, examples, plot)
+        say(f"wrote {plot}")
+    _calibrate(model, held, train_s, seed, say)
+    record["tidy"] = info.tidy.to_dict() if info.tidy is not None else None
+    _save(model, out_path, report, record, say)
+    if state is not None:
+        Path(state).unlink(missing_ok=True)
+        if cfg.members > 1:  # an ensemble's members each kept their own state
+            for m in range(cfg.members):
+                member_state(state, m).unlink(missing_ok=True)
+    return model
+
+
+def _adopt(
+    model: ScoreModel,
+    ev: EvalReport,
+    record: dict[str, Any],
+    log_dir: str | os.PathLike | None,
+    cfg: TrainConfig,
+    say: Log,
+) -> list[Any]:
+    """Keep the validation figures ``ev`` (held-out objects placed back, beside nearest neighbour) in
+    the model's info, the record and the TensorBoard log; say the table, and warn of what it finds
+    unlearned, kept as the model's caveats, which its placements then carry among their flags. A few
+    placements are returned, for the plot."""
+    model.info.validation = record["validation"] = ev.to_dict()
+    model.info.caveats = ev.caveats()
+    if log_dir is not None:
+        log_validation(log_dir, ev.to_dict(), cfg.iterations - 1)
+    how = (
+        f"{ev.scenes} scenes, each held out once ({ev.folds}-fold cross-validation; seed {ev.seed})"
+        if ev.folds
+        else f"{ev.scenes} held-out scenes (seed {ev.seed})"
+    )
+    say(f"\nleave-one-object-out on {how}:\n{ev.table()}")
+    for w in ev.warnings():
+        print(f"warning: {w}", file=sys.stderr)
+    return ev.examples
+
+
+def _write_heldout(
+    held: list[Scene],
+    out: Path,
+    record: dict[str, Any],
+    seed: int,
+    source: str | os.PathLike | None,
+    say: Log,
+) -> None:
+    """Write the scenes held out here beside the checkpoint, so that the evaluation can be run again."""
+    held_file = out.with_name(out.stem + ".val.jsonl")
+    write_jsonl(held_file, held)
+    record["held_out_file"] = str(held_file)
+    again = f"scenescore evaluate {out} {held_file}" + (
+        f" --train-data {source}" if source is not None else ""
+    )
+    say(f"held-out scenes -> {held_file}; `{again} --seed {seed}` prints the same figures")
+
+
+def _calibrate(model: ScoreModel, held: list[Scene], train_s: list[Scene], seed: int, say: Log) -> None:
+    """Measure what a tidying move must gain on scenes taken as right: the held-out ones, else some
+    training ones."""
+    right = held or train_s[:TIDY_SCENES]
+    calibrate(model, right, seed=seed)
+    say(
+        f"tidy: a move must lower the energy by {count_weight(model, scene=right[0]):.3f} at effort 1 in a scene "
+        f"of {len(right[0])} objects (the single-move gains of {len(right)} "
+        f"{'held-out' if held else 'training'} scenes)"
+    )
+
+
+def _save(
+    model: ScoreModel,
+    out: Path | None,
+    report: str | os.PathLike | None,
+    record: dict[str, Any],
+    say: Log,
+) -> None:
+    """Write the checkpoint (when ``out``), then the report (``report``, default beside the checkpoint)."""
+    path = None if report is None else Path(report)
+    if out is not None:
+        model.save(out)
+        path = path or out.with_name("train_report.json")
+    if path is None:
+        return
+    atomic_write_text(path, json.dumps(record, indent=1) + "\n")
+    say(f"wrote {out} and {path}" if out is not None else f"wrote {path}")
