@@ -17,7 +17,7 @@ import torch
 
 from scenescore.encoders import FootprintEncoder
 from scenescore.geometry.poses import uniform_init
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.models import ScoreModel
 from scenescore.runtime.devices import generator, resolve_device
 from scenescore.scenarios import DiningScenario
@@ -74,7 +74,7 @@ def main() -> None:
     train_s, _ = DiningScenario().split(0)
     synchronize(device)
     t = time.perf_counter()
-    m = train(train_s, cfg, seed=0, progress=False, device=device)
+    m = fit(train_s, cfg, seed=0, progress=False, device=device)
     synchronize(device)
     dt = time.perf_counter() - t
     print(

@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.scenarios import DiningScenario
 from scenescore.scenarios.dining import CATALOGUE
 from scenescore.scene.scene import Scene, SceneObject
@@ -79,9 +79,7 @@ def main(argv: list[str] | None = None) -> None:
     sizes = [int(s) for s in args.sizes.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        model = train(
-            DiningScenario().generate(24, 0), TrainConfig(iterations=args.iterations), progress=False
-        )
+        model = fit(DiningScenario().generate(24, 0), TrainConfig(iterations=args.iterations), progress=False)
         path = Path(tmp) / "model.ckpt"
         model.save(path)
         c = model.config

@@ -32,7 +32,7 @@ import torch
 
 import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.models import ScoreModel
 from scenescore.planning.placement import place, place_many
 from scenescore.runtime.cores import free_cores
@@ -130,24 +130,24 @@ def main() -> None:
 def _tasks(iterations: int, room_iterations: int) -> list[tuple[str, Callable[[], object]]]:
     """The benchmark's tasks, their models trained first (which warms up too)."""
     scenes = ss.scenarios.get("dining").generate(48, 0)
-    model = train(scenes[:8], TrainConfig(iterations=iterations), seed=0, progress=False)
+    model = fit(scenes[:8], TrainConfig(iterations=iterations), seed=0, progress=False)
     holes = [s.without(s.objects[1].name) for s in scenes[:4]]
     room = ss.scenarios.get("zoo-classroom")
     room_train, room_test = room.split(0)
     room_cfg = TrainConfig(iterations=room_iterations)
-    room_model = train(room_train, room_cfg, seed=0, progress=False)
+    room_model = fit(room_train, room_cfg, seed=0, progress=False)
     rooms = [c.scene for c in zoo_cases(room, room_test, 0)[:2]]
     cfg = TrainConfig(iterations=iterations)
     return [
         (
             f"train ({len(scenes)} scenes, {iterations} it)",
-            lambda: train(scenes, cfg, seed=0, progress=False),
+            lambda: fit(scenes, cfg, seed=0, progress=False),
         ),
         ("place (1 scene, 64 particles)", lambda: place(model, holes[0], seed=0)),
         ("place_many (4 scenes, 256 particles)", lambda: place_many(model, holes, seed=0)),
         (
             f"train a room ({len(room_train)} classroom scenes, {room_iterations} it)",
-            lambda: train(room_train, room_cfg, seed=0, progress=False),
+            lambda: fit(room_train, room_cfg, seed=0, progress=False),
         ),
         ("place in a room (3 chairs x 2 scenes)", lambda: place_many(room_model, rooms, seed=0)),
     ]

@@ -16,7 +16,7 @@ import time
 
 import torch
 
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.scenarios import get
 
 
@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> None:
     for _ in range(args.repeats):
         for grouped in (True, False):
             t = time.perf_counter()
-            m = train(
+            m = fit(
                 scenes, TrainConfig(iterations=args.iterations, group_sizes=grouped), seed=0, progress=False
             )
             times[grouped].append(time.perf_counter() - t)

@@ -59,7 +59,7 @@ def seconds_per_iteration(
     model = None
     for iterations in (2, timed + 2):
         t = time.perf_counter()
-        model = ss.learn.train(
+        model = ss.learn.fit(
             list(scenes), TrainConfig(iterations=iterations, graph=graph), seed=0, progress=False
         )
         walls.append(time.perf_counter() - t)
@@ -125,7 +125,7 @@ def full() -> None:
     for n in (10, 40):
         scenes = classroom(n).generate(48, 0)
         t = time.perf_counter()
-        models[n] = ss.learn.train(scenes, TrainConfig(), seed=0, progress=False)
+        models[n] = ss.learn.fit(scenes, TrainConfig(), seed=0, progress=False)
         times[n] = time.perf_counter() - t
     scene = classroom(40).generate(1, 1)[0]
     placing = place_seconds(models[40], scene)

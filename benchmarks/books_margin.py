@@ -20,7 +20,7 @@ import time
 import numpy as np
 import torch
 
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.models.trust import energy_per_object
 from scenescore.scenarios import get
 from scenescore.scene.scene import Scene
@@ -64,7 +64,7 @@ def main() -> None:
     )
     for overrides in json.loads(args.configs):
         t0 = time.perf_counter()
-        model = train(train_s, TrainConfig(**overrides), seed=args.seed, progress=False)
+        model = fit(train_s, TrainConfig(**overrides), seed=args.seed, progress=False)
         seconds = time.perf_counter() - t0
         a, b = margins(model, train_s, sc.gap), margins(model, test_s, sc.gap)
         print(

@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from scenescore.experiments.compose import REFINE, correct_samples, langevin_options, train_config, tv_problem
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.models import ScoreModel, load
 from scenescore.scenarios.tv import TVScenario
 from scenescore.scene.scene import Scene
@@ -53,7 +53,7 @@ def energy(seed: int, changes: dict[str, Any], model_dir: Path | None) -> ScoreM
         return load(path)
     train_scenes, _ = TVScenario().split(seed)
     tc = TrainConfig(**{**train_config().to_dict(), **changes})
-    model = train(train_scenes, tc, seed=seed, progress=False)
+    model = fit(train_scenes, tc, seed=seed, progress=False)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         model.save(path)

@@ -23,7 +23,7 @@ import torch
 
 import scenescore as ss
 from scenescore.experiments.zoo import zoo_cases
-from scenescore.learn import RAW_EDGES, TrainConfig, train
+from scenescore.learn import RAW_EDGES, TrainConfig, fit
 from scenescore.models.layout import BOUND_TOL, touching_bound
 from scenescore.planning.placement import place_many, placement_problem
 
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> None:
     print("|---|---|---:|---:|---:|---:|---:|")
     for label, cfg in CONFIGS.items():
         t0 = time.perf_counter()
-        model = train(tr, cfg, seed=args.seed, progress=False)
+        model = fit(tr, cfg, seed=args.seed, progress=False)
         for grow in (1.0, args.grow):
             scenes = []
             for c in cases:

@@ -23,7 +23,7 @@ import torch
 
 import scenescore as ss
 from scenescore.experiments.zoo import place_back, zoo_cases
-from scenescore.learn import TrainConfig, split_validation, train
+from scenescore.learn import TrainConfig, fit, split_validation
 from scenescore.planning.placement import place_many
 
 
@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> None:
     sc = ss.scenarios.get(args.scenario)
     data, test = sc.split(args.seed)
     tr, held = split_validation(data, seed=args.seed)
-    model = train(tr, TrainConfig(), seed=args.seed, progress=False, validation=held)
+    model = fit(tr, TrainConfig(), seed=args.seed, progress=False, validation=held)
     if not hasattr(sc, "missing"):
         raise SystemExit(f"{args.scenario} has no missing categories")
     cases = zoo_cases(sc, test, args.seed)

@@ -31,7 +31,7 @@ import torch
 
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.experiments.zoo_verdicts import catastrophic, good, read_cases
-from scenescore.learn import TrainConfig, split_validation, train
+from scenescore.learn import Run, TrainConfig, fit, split_validation
 from scenescore.learn.cache import cached_path
 from scenescore.models.ensemble import member_seed
 from scenescore.models.shares import shares_by_energy
@@ -130,7 +130,7 @@ def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Names
                 sys.exit(
                     f"{name} seed {seed}: member {m} is not in {args.cache}; run this with the run's code"
                 )
-        model = train(train_s, cfg, seed=seed, progress=False, cache=args.cache)
+        model = fit(train_s, cfg, seed=seed, progress=False, run=Run(cache=args.cache))
         ref = model.info.trust
         mine = [(c, b) for c, b in zip(cases, catastrophic(cases)) if c["seed"] == seed]
         for case, (rec, bad) in zip(zoo_cases(sc, test_s, seed), mine, strict=True):

@@ -21,7 +21,7 @@ import torch
 
 from scenescore.evaluation.cases import case_errors
 from scenescore.experiments.zoo import place_back, zoo_cases
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.models import ScoreModel
 from scenescore.models.network import WALLS
 from scenescore.scenarios import get
@@ -58,7 +58,7 @@ def main() -> None:
         "| config | object | t (cm) | E placed - E truth | the same without walls |\n|---|---|---:|---:|---:|"
     )
     for overrides in json.loads(args.configs):
-        model = train(train_s, TrainConfig(**overrides), seed=args.seed, progress=False)
+        model = fit(train_s, TrainConfig(**overrides), seed=args.seed, progress=False)
         placed = place_back(model, cases, args.seed)
         far = 0
         for c, p in zip(cases, placed):

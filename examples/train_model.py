@@ -14,7 +14,7 @@ from pathlib import Path
 import torch
 
 import scenescore as ss
-from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.learn import NetworkConfig, TrainConfig, fit
 
 
 def main(argv: list[str] | None = None) -> Path:
@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> Path:
     torch.set_num_threads(1)  # tiny tensors: one thread is several times faster than a contended pool
     scenes = ss.scenarios.get("dining").generate(48, args.seed)
     t = time.perf_counter()
-    model = train(
+    model = fit(
         scenes,
         TrainConfig(iterations=args.iterations, network=NetworkConfig(hidden=32, layers=2)),
         progress=not args.quiet,

@@ -15,7 +15,7 @@ from .problem.problem import Problem, ProblemError
 from .runtime.threads import thread_budget  # with ss.thread_budget(1): ... is --threads 1
 from .scene.scene import Scene, SceneError, SceneObject, read_jsonl, write_jsonl
 from .solvers import solve
-from .workflow.train import train_model as train  # ss.train(scenes, seed=0): `scenescore train`'s model
+from .workflow import train  # ss.train(scenes, seed=0): `scenescore train`'s model
 
 __version__ = "0.1.0"
 

@@ -37,7 +37,7 @@ from scenescore.experiments.bundled import (
 )
 from scenescore.experiments.relation_models import train_config as relations_train_config
 from scenescore.experiments.relation_models import train_relation
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.models import load
 from scenescore.runtime.provenance import git_commit
 from scenescore.scenarios import get
@@ -70,7 +70,7 @@ def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> 
     else:
         train_s, _ = get(name).split(seed)
         config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
-        model = train(train_s, config, seed=seed, progress=True)
+        model = fit(train_s, config, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
     path = folder / f"{name}.ckpt"
     model.save(path)

@@ -2,7 +2,7 @@
 
 Every test runs under a thread budget of ``SCENESCORE_TEST_THREADS``, else ``OMP_NUM_THREADS``, else 1
 (this library's tensors are mostly tiny, where a thread pool only adds overhead). The budget is given, not automatic, so that no
-choice depends on how busy the machine is (:func:`scenescore.runtime.threads.threads_for`). CI runs the tests
+choice depends on how busy the machine is (:func:`scenescore.runtime.threads.workers`). CI runs the tests
 marked ``float_order`` a second time with the other of 1 and 2 threads: a test whose exact comparison holds only for one
 split of the work fails there too, on any machine.
 

@@ -14,7 +14,9 @@ import scenescore as ss
 from scenescore.cli import main
 from scenescore.encoders import FootprintEncoder
 from scenescore.evaluation.report import CategoryErrors, EvalReport
+from scenescore.learn import Run
 from scenescore.scene.scene import SceneError
+from scenescore.workflow import Outputs
 from scenescore.workflow.crossval import (
     CROSS_VALIDATE_BELOW,
     FOLDS,
@@ -112,7 +114,12 @@ def test_train_on_a_dozen_scenes_trains_on_all_and_carries_the_cross_validated_f
     scenes = _pairs(9)
     lines: list[str] = []
     model = ss.train(
-        scenes, SMALL, seed=2, force=True, progress=False, log=lines.append, out=tmp_path / "m.ckpt"
+        scenes,
+        SMALL,
+        seed=2,
+        force=True,
+        progress=False,
+        outputs=Outputs(log=lines.append, checkpoint=tmp_path / "m.ckpt"),
     )
     v = model.info.validation
     assert model.info.scenes == 9  # the final model saw every scene
@@ -146,7 +153,16 @@ def test_the_final_model_and_the_folds_train_in_one_pool_as_they_would_alone(mem
     cfg = replace(SMALL, members=members)
     given = FootprintEncoder()  # as the command line gives one: training sets the unit it reads sizes in
     one, two = (
-        ss.train(scenes, cfg, seed=2, force=True, progress=False, log=None, jobs=j, encoder=given)
+        ss.train(
+            scenes,
+            cfg,
+            seed=2,
+            force=True,
+            progress=False,
+            encoder=given,
+            outputs=Outputs(log=None),
+            run=Run(jobs=j),
+        )
         for j in (1, 2)
     )
     mine, theirs = one.net.state_dict(), two.net.state_dict()
@@ -170,10 +186,26 @@ def test_a_cross_validated_model_keeps_its_log_where_it_was_asked_for(tmp_path):
         acc.Reload()
         return set(acc.Tags()["scalars"])
 
-    ss.train(_pairs(6), SMALL, seed=2, force=True, progress=False, log=None, log_dir=tmp_path / "one")
+    ss.train(
+        _pairs(6),
+        SMALL,
+        seed=2,
+        force=True,
+        progress=False,
+        outputs=Outputs(log=None),
+        run=Run(log_dir=tmp_path / "one"),
+    )
     assert "train/loss" in tags(tmp_path / "one")
     two = replace(SMALL, members=2)
-    ss.train(_pairs(6), two, seed=2, force=True, progress=False, log=None, log_dir=tmp_path / "two")
+    ss.train(
+        _pairs(6),
+        two,
+        seed=2,
+        force=True,
+        progress=False,
+        outputs=Outputs(log=None),
+        run=Run(log_dir=tmp_path / "two"),
+    )
     assert "train/loss" in tags(tmp_path / "two" / "member0") and "train/loss" in tags(
         tmp_path / "two" / "member1"
     )

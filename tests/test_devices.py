@@ -265,14 +265,14 @@ def test_device_cpu_is_the_default(files, capsys):
 
 def _run(device: str, scenes: list[ss.Scene], tmp: Path) -> dict[str, Any]:
     """Train, save and load, place, and solve with every solver on ``device``: the numbers."""
-    from scenescore.learn import TrainConfig, heldout_loss, train
+    from scenescore.learn import TrainConfig, fit, heldout_loss
     from scenescore.planning.placement import PLACE, place
     from scenescore.solvers.compare import compare
     from scenescore.solvers.kernel import PLACEMENT
 
     out: dict[str, Any] = {}
     cfg = TrainConfig(iterations=2, batch_scenes=2, negatives=2, perturbed=1, chain_steps=2)
-    model = train(scenes[:3], cfg, seed=5, progress=False, validation=scenes[3:], device=device)
+    model = fit(scenes[:3], cfg, seed=5, progress=False, validation=scenes[3:], device=device)
     assert model.device == (CPU if device == "cpu" else GPU)
     model.save(tmp / f"{device}.ckpt")
     model = ss.models.load(tmp / f"{device}.ckpt", device=device)
@@ -320,12 +320,12 @@ def test_train_place_and_solve_on_a_pretend_gpu_give_the_cpus_numbers(tmp_path):
 
 
 def test_a_learned_energy_runs_where_its_model_is(tmp_path):
-    from scenescore.learn import TrainConfig, train
+    from scenescore.learn import TrainConfig, fit
 
     scenes = ss.scenarios.get("dining").generate(4, 0)
     mp = pytest.MonkeyPatch()
     with fake_gpu(mp):
-        model = train(scenes, TrainConfig(iterations=1, negatives=2), progress=False, device="cuda")
+        model = fit(scenes, TrainConfig(iterations=1, negatives=2), progress=False, device="cuda")
         q = scenes[0].copy()
         q.objects[0].pose = None
         assert ss.Problem(q, LearnedEnergy(model)).device == GPU  # the model's device by default

@@ -15,7 +15,7 @@ from scenescore.learn import NetworkConfig, TrainConfig
 from scenescore.models import Caveats, ModelInfo
 from scenescore.planning.placement import PLACE
 from scenescore.scenarios import get
-from scenescore.workflow.train import train_model
+from scenescore.workflow import Outputs, Validation, train
 
 # placement cut short: the flags, not the poses, are under test
 QUICK = replace(PLACE, particles=8, candidates=64, chain=replace(PLACE.chain, steps=8, final_descent=4))
@@ -73,8 +73,14 @@ def test_training_on_a_dozen_scenes_warns_and_every_placement_of_the_model_says_
     scenes = get("dining").generate(12, seed=0)
     cfg = TrainConfig(iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1))
     # one hold-out (cross-validation, the default for a dozen scenes, pools the same figures: test_crossval)
-    model = train_model(
-        scenes, cfg, seed=0, force=True, progress=False, log=None, out=tmp_path / "m.ckpt", folds=1
+    model = train(
+        scenes,
+        cfg,
+        seed=0,
+        force=True,
+        progress=False,
+        validation=Validation(folds=1),
+        outputs=Outputs(log=None, checkpoint=tmp_path / "m.ckpt"),
     )
     err = capsys.readouterr().err
     v = model.info.validation

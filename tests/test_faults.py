@@ -21,7 +21,7 @@ import pytest
 
 import scenescore as ss
 from scenescore.cli import main
-from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.learn import NetworkConfig, Run, TrainConfig, fit
 from scenescore.scene.outputs import WriteError, atomic_write_bytes
 
 try:
@@ -81,7 +81,7 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]
     data, ckpt, state = folder / "dining.jsonl", folder / "earlier.ckpt", folder / "finished.state"
     scenes = ss.scenarios.get("dining").generate(6, 0)
     ss.write_jsonl(data, scenes)
-    model = train(ss.read_jsonl(data), CFG, seed=SEED, progress=False, state=state, keep_state=True)
+    model = fit(ss.read_jsonl(data), CFG, seed=SEED, progress=False, run=Run(state=state, keep_state=True))
     model.save(ckpt)
     return data, ckpt, state
 

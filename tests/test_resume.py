@@ -20,7 +20,7 @@ import torch
 import scenescore as ss
 import scenescore.learn.loop as loop
 from scenescore.cli import main
-from scenescore.learn import NetworkConfig, StateError, TrainConfig, train
+from scenescore.learn import NetworkConfig, Run, StateError, TrainConfig, fit
 from scenescore.models import load
 
 CFG = TrainConfig(iterations=30, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
@@ -38,7 +38,7 @@ def scenes():
 
 @pytest.fixture(scope="module")
 def uninterrupted(scenes):
-    return train(scenes, CFG, seed=SEED, progress=False)
+    return fit(scenes, CFG, seed=SEED, progress=False)
 
 
 def _interrupt_at(monkeypatch: pytest.MonkeyPatch, iteration: int) -> None:
@@ -74,9 +74,9 @@ def test_resumed_training_ends_with_the_uninterrupted_weights(
     with monkeypatch.context() as m:
         _interrupt_at(m, dies_at)
         with pytest.raises(Interrupted):
-            train(scenes, CFG, seed=SEED, progress=False, state=state, save_every=10)
+            fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, save_every=10))
     assert state.exists()
-    resumed = train(scenes, CFG, seed=SEED, progress=False, state=state, save_every=10, resume=True)
+    resumed = fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, save_every=10, resume=True))
     _same_weights(resumed.net, uninterrupted.net)
     assert resumed.info.history == uninterrupted.info.history
     assert resumed.info.final_loss == uninterrupted.info.final_loss
@@ -85,10 +85,10 @@ def test_resumed_training_ends_with_the_uninterrupted_weights(
 
 def test_a_finished_state_resumes_without_training(scenes, uninterrupted, tmp_path, monkeypatch):
     state = tmp_path / "run.state"
-    train(scenes, CFG, seed=SEED, progress=False, state=state, save_every=10, keep_state=True)
+    fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, save_every=10, keep_state=True))
     assert state.exists()
     monkeypatch.setattr(loop, "write_state", _die)  # an iteration done now would die: the last writes
-    resumed = train(scenes, CFG, seed=SEED, progress=False, state=state, resume=True)
+    resumed = fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, resume=True))
     _same_weights(resumed.net, uninterrupted.net)
 
 
@@ -102,18 +102,17 @@ def test_a_finished_state_resumes_without_training(scenes, uninterrupted, tmp_pa
 )
 def test_a_state_of_another_training_is_refused(scenes, tmp_path, change, part):
     state = tmp_path / "run.state"
-    train(scenes, CFG, seed=SEED, progress=False, state=state, save_every=10, keep_state=True)
+    fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, save_every=10, keep_state=True))
     data = scenes[change.get("scenes_from", 0) :]
     with pytest.raises(
         StateError, match=rf"^{re.escape(str(state))}: .*another training \(its {part} differ"
     ):
-        train(
+        fit(
             data,
             change.get("config", CFG),
             seed=change.get("seed", SEED),
             progress=False,
-            state=state,
-            resume=True,
+            run=Run(state=state, resume=True),
         )
     assert state.exists()  # a refused state is left as it was
 
@@ -122,7 +121,7 @@ def test_a_file_that_is_not_a_state_is_refused(scenes, tmp_path):
     state = tmp_path / "run.state"
     state.write_text("not a state\n")
     with pytest.raises(StateError, match=rf"^{re.escape(str(state))}: not a training state"):
-        train(scenes, CFG, seed=SEED, progress=False, state=state, resume=True)
+        fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, resume=True))
 
 
 def _cli(data: Path, out: Path, *extra: str) -> list[str]:
@@ -165,12 +164,12 @@ def test_sigkill_then_resume_writes_the_uninterrupted_weights(scenes, tmp_path, 
     done = subprocess.run(cli("--resume"), env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert not state.exists()  # removed once the checkpoint is written
-    _same_weights(load(out).net, train(few, CFG, seed=SEED, progress=False).net)
+    _same_weights(load(out).net, fit(few, CFG, seed=SEED, progress=False).net)
 
 
 def test_resume_without_a_state_yet_trains_from_the_start(scenes, uninterrupted, tmp_path, capsys):
     state = tmp_path / "run.state"
-    model = train(scenes, CFG, seed=SEED, progress=False, state=state, resume=True)
+    model = fit(scenes, CFG, seed=SEED, progress=False, run=Run(state=state, resume=True))
     assert f"no training state at {state} yet" in capsys.readouterr().err
     _same_weights(model.net, uninterrupted.net)
 
@@ -178,7 +177,7 @@ def test_resume_without_a_state_yet_trains_from_the_start(scenes, uninterrupted,
 def test_the_cli_refuses_a_state_of_another_seed_in_one_line(scenes, tmp_path, capsys):
     data, state = tmp_path / "dining.jsonl", tmp_path / "other.state"
     ss.write_jsonl(data, scenes)
-    train(scenes, CFG, seed=SEED + 1, progress=False, state=state, save_every=10, keep_state=True)
+    fit(scenes, CFG, seed=SEED + 1, progress=False, run=Run(state=state, save_every=10, keep_state=True))
     argv = _cli(data, tmp_path / "m.ckpt", "--resume", "--state", str(state))[3:]  # after `-m scenescore`
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -11,7 +11,8 @@ import torch
 
 import scenescore as ss
 from scenescore.evaluation.cases import make_cases
-from scenescore.learn import NetworkConfig, TrainConfig, data_scale, train
+from scenescore.learn import NetworkConfig, TrainConfig, fit
+from scenescore.learn.data import data_scale
 from scenescore.planning.placement import PLACE, place_many
 
 CFG = TrainConfig(
@@ -25,7 +26,7 @@ def _run(k: float) -> tuple[np.ndarray, ss.models.ScoreModel]:
     sc = ss.scenarios.get("dining")
     scenes = [s.scaled(k) for s in sc.generate(8, 1)]
     cases = make_cases([s.scaled(k) for s in sc.generate(2, 2)], ("fork", "bowl"))[:3]
-    model = train(scenes, CFG, seed=0, progress=False)
+    model = fit(scenes, CFG, seed=0, progress=False)
     placed = place_many(model, [c.scene for c in cases], SMALL, seed=0)
     return np.array([p[c.name].pose for c, p in zip(cases, placed)]), model
 
@@ -48,11 +49,9 @@ def test_data_scale_is_derived_from_the_data():
     assert 0.05 < length < 0.2 and 5 < far < 15
     l8, f8 = data_scale([s.scaled(8) for s in scenes])
     assert l8 == 8 * length and f8 == far
-    model = train(scenes, replace(CFG, iterations=1), seed=0, progress=False)
+    model = fit(scenes, replace(CFG, iterations=1), seed=0, progress=False)
     assert model.config.length_scale == length and model.config.edge_range is None  # linear by default
-    saturating = train(scenes, replace(CFG, iterations=1, saturate_edges=True), seed=0, progress=False)
+    saturating = fit(scenes, replace(CFG, iterations=1, saturate_edges=True), seed=0, progress=False)
     assert saturating.config.edge_range == far
-    pinned = train(
-        scenes, replace(CFG, iterations=1, length_scale=0.3, edge_range=4.0), seed=0, progress=False
-    )
+    pinned = fit(scenes, replace(CFG, iterations=1, length_scale=0.3, edge_range=4.0), seed=0, progress=False)
     assert pinned.config.length_scale == 0.3 and pinned.config.edge_range == 4.0

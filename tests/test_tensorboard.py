@@ -12,7 +12,9 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from scenescore.cli import main  # noqa: E402
 from scenescore.errors import ConfigError  # noqa: E402
-from scenescore.learn import LR_DENSE, NetworkConfig, TrainConfig, log_validation, train  # noqa: E402
+from scenescore.learn import NetworkConfig, Run, TrainConfig, fit  # noqa: E402
+from scenescore.learn.config import LR_DENSE
+from scenescore.learn.logs import log_validation
 from scenescore.scenarios import get  # noqa: E402
 from scenescore.scene.scene import write_jsonl  # noqa: E402
 
@@ -28,7 +30,7 @@ def _scalars(log_dir):
 def test_training_logs_loss_and_lr_every_iteration(tmp_path):
     torch.set_num_threads(1)
     log = tmp_path / "runs" / "a"
-    model = train(get("tv").generate(4, seed=0), CFG, seed=0, progress=False, log_dir=log)
+    model = fit(get("tv").generate(4, seed=0), CFG, seed=0, progress=False, run=Run(log_dir=log))
     assert list(log.glob("events.out.tfevents.*"))
     s = _scalars(log)
     assert [step for step, _ in s["train/loss"]] == [0, 1, 2, 3]
@@ -82,4 +84,4 @@ def test_cli_log_dir(tmp_path, capsys, monkeypatch):
     assert "'tensorboard' extra" in err and len(err.strip().splitlines()) == 1
     assert not out.exists() and not (tmp_path / "log2").exists()
     with pytest.raises(ConfigError, match="'tensorboard' extra"):
-        train(get("tv").generate(2, seed=0), CFG, progress=False, log_dir=tmp_path / "log3")
+        fit(get("tv").generate(2, seed=0), CFG, progress=False, run=Run(log_dir=tmp_path / "log3"))

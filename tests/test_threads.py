@@ -11,7 +11,7 @@ import scenescore.models.chunks as chunks
 import scenescore.models.network as network
 import scenescore.runtime.threads as th
 from scenescore.errors import ConfigError
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.planning.placement import place
 from scenescore.runtime import cores
 from scenescore.runtime.ahead import Ahead
@@ -35,7 +35,7 @@ def test_budget_is_scoped_and_nests():
     with ss.thread_budget(3) as n:
         assert n == 3 and torch.get_num_threads() == 3 and th.budget() == 3
         with ss.thread_budget(2):
-            assert torch.get_num_threads() == 2 and th.threads_for(th.POOL_ROWS) == 2
+            assert torch.get_num_threads() == 2 and th.workers() == 2
         assert torch.get_num_threads() == 3 and th.budget() == 3
     assert torch.get_num_threads() == 1 and th.budget() == 1
     with ss.thread_budget(None) as n:  # automatic: torch's own setting, untouched
@@ -57,24 +57,22 @@ def test_bad_budget_is_one_line(bad):
     assert torch.get_num_threads() == 1
 
 
-def test_given_budget_is_used_by_heavy_work_and_tiny_tensors_get_one(monkeypatch):
+def test_a_given_budget_is_used_whatever_the_load(monkeypatch):
     monkeypatch.setattr(th, "free_cores", lambda: 0.0)  # a busy machine: ignored when the budget is given
     with ss.thread_budget(4):
-        assert th.threads_for(th.POOL_ROWS) == 4
-        assert th.threads_for(th.POOL_ROWS - 1) == 1
+        assert th.workers() == 4
 
 
 def test_automatic_choice_takes_free_cores_within_the_budget(monkeypatch):
     torch.set_num_threads(4)
     monkeypatch.setattr(th, "free_cores", lambda: 0.1)
-    assert th.threads_for(th.POOL_ROWS) == 1  # every core busy with other processes
+    assert th.workers() == 1  # every core busy with other processes
     monkeypatch.setattr(th, "free_cores", lambda: 2.0)
-    assert th.threads_for(th.POOL_ROWS) == 2
+    assert th.workers() == 2
     monkeypatch.setattr(th, "free_cores", lambda: 16.0)
-    assert th.threads_for(th.POOL_ROWS) == 4  # never above the budget
+    assert th.workers() == 4  # never above the budget
     monkeypatch.setattr(th, "free_cores", lambda: None)  # cannot tell: the budget
-    assert th.threads_for(th.POOL_ROWS) == 4
-    assert th.threads_for(8) == 1
+    assert th.workers() == 4
 
 
 def test_choices_inside_a_one_thread_block_see_the_callers_budget(monkeypatch):
@@ -82,7 +80,7 @@ def test_choices_inside_a_one_thread_block_see_the_callers_budget(monkeypatch):
     monkeypatch.setattr(th, "free_cores", lambda: 8.0)
     with th.torch_threads(1):
         assert torch.get_num_threads() == 1
-        assert th.budget() == 3 and th.threads_for(th.POOL_ROWS) == 3
+        assert th.budget() == 3 and th.workers() == 3
     assert torch.get_num_threads() == 3
 
 
@@ -96,7 +94,7 @@ def test_free_cores_is_a_share_of_this_process_cpus():
 def test_train_and_place_leave_torchs_setting_alone():
     scenes = ss.scenarios.get("dining").generate(4, 0)
     torch.set_num_threads(2)
-    model = train(scenes, TrainConfig(iterations=2, negatives=2), seed=0, progress=False)
+    model = fit(scenes, TrainConfig(iterations=2, negatives=2), seed=0, progress=False)
     assert torch.get_num_threads() == 2
     with ss.thread_budget(1):
         place(model, scenes[0].without("fork_0"), LangevinOptions(particles=4, chain=SHORT), seed=0)
@@ -175,7 +173,7 @@ def test_a_seed_names_the_weights_and_placements_whatever_the_load(monkeypatch):
     monkeypatch.setattr(chunks, "in_parallel", spy)
 
     def run():
-        model = train(scenes, TrainConfig(iterations=1), seed=0, progress=False)
+        model = fit(scenes, TrainConfig(iterations=1), seed=0, progress=False)
         placed = place(model, hole, LangevinOptions(particles=256, chain=SHORT), seed=0)
         return [p.detach().clone() for p in model.net.parameters()], placed
 

@@ -9,7 +9,7 @@ import torch
 from scenescore import Scene, SceneObject
 from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
-from scenescore.learn import RAW_EDGES, NetworkConfig, TrainConfig, train
+from scenescore.learn import RAW_EDGES, NetworkConfig, Run, TrainConfig, fit
 from scenescore.planning.placement import PLACE as PLACE_DEFAULT
 from scenescore.planning.placement import place
 from scenescore.solvers.kernel import LangevinConfig
@@ -41,7 +41,7 @@ PLACE = replace(
 @pytest.mark.slow
 def test_tiny_training_learns_a_fixed_offset():
     torch.set_num_threads(1)
-    model = train(_offset_scenes(24, 0), CFG, seed=0, progress=False)
+    model = fit(_offset_scenes(24, 0), CFG, seed=0, progress=False)
     assert model.info.final_loss < model.info.chance_loss
     errs = []
     for s in _offset_scenes(6, 99):
@@ -55,14 +55,14 @@ def test_same_seed_same_numbers():
     torch.set_num_threads(1)
     cfg = TrainConfig(iterations=10, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
     scenes = _offset_scenes(6, 1)
-    m1 = train(scenes, cfg, seed=5, progress=False)
-    m2 = train(scenes, cfg, seed=5, progress=False)
+    m1 = fit(scenes, cfg, seed=5, progress=False)
+    m2 = fit(scenes, cfg, seed=5, progress=False)
     for (k, a), b in zip(m1.net.state_dict().items(), m2.net.state_dict().values()):
         assert torch.equal(a, b), k
     q = scenes[0].without("b")
     small = replace(PLACE_DEFAULT, particles=8, chain=LangevinConfig(steps=5))
     assert place(m1, q, small, seed=3)["b"].pose == place(m2, q, small, seed=3)["b"].pose
-    m3 = train(scenes, cfg, seed=6, progress=False)
+    m3 = fit(scenes, cfg, seed=6, progress=False)
     assert not torch.equal(next(m1.net.parameters()), next(m3.net.parameters()))
 
 
@@ -87,8 +87,8 @@ def test_feature_noise_is_seeded_and_changes_training():
     scenes = _offset_scenes(6, 1)
     cfg = TrainConfig(iterations=5, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
     quiet = TrainConfig(**{**cfg.to_dict(), "feature_noise": 0.0})
-    a, b = (train(scenes, cfg, seed=2, progress=False) for _ in range(2))
-    c = train(scenes, quiet, seed=2, progress=False)
+    a, b = (fit(scenes, cfg, seed=2, progress=False) for _ in range(2))
+    c = fit(scenes, quiet, seed=2, progress=False)
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
 
@@ -105,8 +105,8 @@ def test_size_noise_is_seeded_and_changes_training():
     )
     assert cfg.size_noise > 0  # on by default
     quiet = TrainConfig(**{**cfg.to_dict(), "size_noise": 0.0})
-    a, b = (train(scenes, cfg, seed=2, progress=False) for _ in range(2))
-    c = train(scenes, quiet, seed=2, progress=False)
+    a, b = (fit(scenes, cfg, seed=2, progress=False) for _ in range(2))
+    c = fit(scenes, quiet, seed=2, progress=False)
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
     with pytest.raises(ConfigError, match="size_noise"):
@@ -130,7 +130,7 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
 
     average = loop.moving_average
     monkeypatch.setattr(loop, "moving_average", record)
-    model = train(scenes, cfg, seed=2, progress=False)
+    model = fit(scenes, cfg, seed=2, progress=False)
     assert len(seen) == 4  # iterations 4 .. 7
     decay = 0.25
     want = seen[0]
@@ -140,9 +140,9 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
         torch.testing.assert_close(got, exp)
     assert not torch.equal(next(model.net.parameters()), seen[-1][0])  # not the last iterate
     monkeypatch.undo()
-    last = train(scenes, replace(cfg, average=0.0), seed=2, progress=False)
+    last = fit(scenes, replace(cfg, average=0.0), seed=2, progress=False)
     torch.testing.assert_close(next(last.net.parameters()), seen[-1][0])  # averaging off: the last iterate
-    again = train(scenes, cfg, seed=2, progress=False)
+    again = fit(scenes, cfg, seed=2, progress=False)
     assert torch.equal(next(again.net.parameters()), next(model.net.parameters()))
     for bad in (1.0, -0.1, float("nan")):
         with pytest.raises(ConfigError, match="average"):
@@ -152,8 +152,8 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
 def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
     scenes = _offset_scenes(4, 1)
     small = {"iterations": 2, "batch_scenes": 2, "negatives": 2}
-    assert train(scenes, TrainConfig(**small), seed=0, progress=False).config.edge_encoder == 32
-    raw = train(scenes, TrainConfig(**small, **RAW_EDGES), seed=0, progress=False)
+    assert fit(scenes, TrainConfig(**small), seed=0, progress=False).config.edge_encoder == 32
+    raw = fit(scenes, TrainConfig(**small, **RAW_EDGES), seed=0, progress=False)
     assert raw.config.edge_encoder is None and raw.info.train_config["size_noise"] == 0.0
 
 
@@ -169,7 +169,7 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
         return Scene(objs, ((-0.6, -0.3), (0.6, 0.3)))
 
     scenes = [row(n, 0.001 * n) for n in (3, 4, 5, 8, 9, 12, 19, 20)]
-    model = train(scenes, TrainConfig(iterations=2, batch_scenes=4, negatives=2), seed=0, progress=False)
+    model = fit(scenes, TrainConfig(iterations=2, batch_scenes=4, negatives=2), seed=0, progress=False)
     st = model.tensors(scenes)
     by = SizeGroups(st.mask.sum(dim=1))
     assert len(by.groups) > 1 and sorted(i for g, _ in by.groups for i in g) == list(range(8))
@@ -200,7 +200,7 @@ def _row(n: int = 4) -> Scene:
 
 
 def test_reanchored_negatives_move_one_object_next_to_another_anchor():
-    from scenescore.learn import reanchored_negatives
+    from scenescore.learn.negatives import reanchored_negatives
     from scenescore.models import ScoreModel
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
@@ -226,8 +226,8 @@ def test_reanchored_counter_examples_are_seeded_and_change_training():
     torch.set_num_threads(1)
     scenes = [_row(4) for _ in range(4)]
     cfg = TrainConfig(iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
-    a, b = (train(scenes, replace(cfg, reanchored=3), seed=2, progress=False) for _ in range(2))
-    c = train(scenes, replace(cfg, reanchored=0), seed=2, progress=False)
+    a, b = (fit(scenes, replace(cfg, reanchored=3), seed=2, progress=False) for _ in range(2))
+    c = fit(scenes, replace(cfg, reanchored=0), seed=2, progress=False)
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
     assert a.info.chance_loss == pytest.approx(math.log(4 + 3 + 1))
@@ -236,7 +236,7 @@ def test_reanchored_counter_examples_are_seeded_and_change_training():
 
 
 def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
-    from scenescore.learn import ChainBuffer
+    from scenescore.learn.negatives import ChainBuffer
     from scenescore.models import ScoreModel
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
@@ -259,37 +259,37 @@ def test_model_cache_trains_each_model_once_and_only_where_asked(tmp_path, monke
     scenes = _offset_scenes(6, 0)
     cfg = replace(CFG, iterations=3)
     folder = tmp_path / "m"
-    first = train(scenes, cfg, seed=1, progress=False, cache=folder)
+    first = fit(scenes, cfg, seed=1, progress=False, run=Run(cache=folder))
     assert len(list(folder.glob("*.ckpt"))) == 1
-    real = loop.fit
+    real = loop._fit
 
     def never(*a, **k):
         raise AssertionError("trained again")
 
-    monkeypatch.setattr(loop, "fit", never)
-    again = train(scenes, cfg, seed=1, progress=False, cache=folder)  # loaded, not trained
+    monkeypatch.setattr(loop, "_fit", never)
+    again = fit(scenes, cfg, seed=1, progress=False, run=Run(cache=folder))  # loaded, not trained
     x = torch.stack([torch.as_tensor(s.poses(), dtype=torch.float32) for s in scenes])
     st = first.tensors(scenes)
     assert torch.equal(first.energy(x, st), again.energy(x, again.tensors(scenes)))
-    monkeypatch.setattr(loop, "fit", real)
-    train(scenes, cfg, seed=2, progress=False, cache=folder)  # another seed: another model
-    train(
-        scenes, cfg, encoder=FootprintEncoder(), seed=1, progress=False, cache=folder
+    monkeypatch.setattr(loop, "_fit", real)
+    fit(scenes, cfg, seed=2, progress=False, run=Run(cache=folder))  # another seed: another model
+    fit(
+        scenes, cfg, encoder=FootprintEncoder(), seed=1, progress=False, run=Run(cache=folder)
     )  # an encoder: not kept
     assert len(list(folder.glob("*.ckpt"))) == 2
     threads = torch.get_num_threads()
     torch.set_num_threads(threads + 1)  # the weights do not depend on the thread count: the same model
-    monkeypatch.setattr(loop, "fit", never)
+    monkeypatch.setattr(loop, "_fit", never)
     try:
-        train(scenes, cfg, seed=1, progress=False, cache=folder)
+        fit(scenes, cfg, seed=1, progress=False, run=Run(cache=folder))
     finally:
         torch.set_num_threads(threads)
     assert len(list(folder.glob("*.ckpt"))) == 2
-    monkeypatch.setattr(loop, "fit", never)
+    monkeypatch.setattr(loop, "_fit", never)
     with pytest.raises(AssertionError, match="trained again"):
-        train(scenes, cfg, seed=1, progress=False)  # without a cache nothing is read
+        fit(scenes, cfg, seed=1, progress=False)  # without a cache nothing is read
     from scenescore.learn import cache
 
     monkeypatch.setattr(cache, "code_version", lambda: "other code")
     with pytest.raises(AssertionError, match="trained again"):
-        train(scenes, cfg, seed=1, progress=False, cache=folder)  # other code: not read
+        fit(scenes, cfg, seed=1, progress=False, run=Run(cache=folder))  # other code: not read

@@ -13,6 +13,7 @@ from scenescore.evaluation.report import CategoryErrors, EvalReport
 from scenescore.learn import NetworkConfig, TrainConfig
 from scenescore.scenarios import get
 from scenescore.scene.units import declared_unit
+from scenescore.workflow import Outputs, Validation
 
 TINY = TrainConfig(iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1))
 
@@ -63,7 +64,15 @@ def _validation_rows(k: float, unit: str) -> tuple[str, dict[str, list[float]]]:
     train = [replace(s.scaled(k), meta={"unit": unit}) for s in sc.generate(6, 0)]
     held = [replace(s.scaled(k), meta={"unit": unit}) for s in sc.generate(2, 1)]
     lines: list[str] = []
-    ss.train(train, TINY, seed=0, heldout=held, force=True, progress=False, log=lines.append)
+    ss.train(
+        train,
+        TINY,
+        seed=0,
+        force=True,
+        progress=False,
+        validation=Validation(heldout=held),
+        outputs=Outputs(log=lines.append),
+    )
     said = next(x for x in lines if "leave-one-object-out" in x).strip().splitlines()
     table = said[1:]  # the header, then a row per category
     cats = {"plate", "fork", "knife", "bowl"}

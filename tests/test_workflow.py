@@ -12,7 +12,8 @@ import torch
 import scenescore as ss
 from scenescore.cli import main
 from scenescore.learn import NetworkConfig, TrainConfig
-from scenescore.workflow.train import NothingLearned, holdout
+from scenescore.workflow import Outputs, Validation
+from scenescore.workflow.training import NothingLearned, holdout
 
 SMALL = TrainConfig(
     iterations=3, batch_scenes=2, negatives=2, reanchored=1, network=NetworkConfig(hidden=8, layers=1)
@@ -69,7 +70,9 @@ def test_the_cli_saves_the_model_the_library_returns(tmp_path, capsys):
     saved, data = _cli_model(tmp_path)
     printed = capsys.readouterr().out
     lines: list[str] = []
-    model = ss.train(ss.read_jsonl(data), cfg, seed=1, force=True, progress=False, log=lines.append)
+    model = ss.train(
+        ss.read_jsonl(data), cfg, seed=1, force=True, progress=False, outputs=Outputs(log=lines.append)
+    )
     _same(saved, model)
     # six scenes: all trained on, each placed back once by 3-fold cross-validation
     assert model.info.validation is not None and model.info.validation["scenes"] == 6
@@ -88,7 +91,12 @@ def test_given_held_out_scenes_are_validated_on_and_every_scene_trained_on(tmp_p
     assert holdout(scenes, 0.15) == (scenes, [])  # too few to hold out 4: all trained on, with a warning
     assert "too few to hold out 4" in capsys.readouterr().err
     model = ss.train(
-        scenes, SMALL, heldout=held, force=True, progress=False, log=None, out=tmp_path / "m.ckpt"
+        scenes,
+        SMALL,
+        force=True,
+        progress=False,
+        validation=Validation(heldout=held),
+        outputs=Outputs(log=None, checkpoint=tmp_path / "m.ckpt"),
     )
     assert model.info.scenes == 4 and model.info.validation["scenes"] == 2
     assert not (tmp_path / "m.val.jsonl").exists()  # scenes given, not split here: not written again
@@ -98,16 +106,21 @@ def test_given_held_out_scenes_are_validated_on_and_every_scene_trained_on(tmp_p
 
 @pytest.mark.parametrize("folds", [1, None])  # one hold-out; cross-validation (six scenes)
 def test_a_model_that_learned_nothing_is_refused_unless_forced(tmp_path, monkeypatch, folds):
-    from scenescore.workflow import crossval
-    from scenescore.workflow import train as workflow
+    from scenescore.workflow import crossval, training
 
     def flat(scenes, *a, **k):
         model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
         model.info = ss.models.ModelInfo(scenes=len(scenes), seconds=0.0, final_loss=1.1, chance_loss=1.1)
         return model
 
-    monkeypatch.setattr(workflow, "train", flat)
-    monkeypatch.setattr(crossval, "train", flat)  # the final model's and the folds' trainings
+    monkeypatch.setattr(training, "fit", flat)
+    monkeypatch.setattr(crossval, "fit", flat)  # the final model's and the folds' trainings
     with pytest.raises(NothingLearned, match=r"never fell below chance \(1.100\)") as e:
-        ss.train(_pairs(6), SMALL, progress=False, log=None, out=tmp_path / "m.ckpt", folds=folds)
+        ss.train(
+            _pairs(6),
+            SMALL,
+            progress=False,
+            validation=Validation(folds=folds),
+            outputs=Outputs(log=None, checkpoint=tmp_path / "m.ckpt"),
+        )
     assert e.value.final_loss == e.value.chance_loss == 1.1 and not list(tmp_path.iterdir())

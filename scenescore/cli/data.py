@@ -10,7 +10,8 @@ from itertools import chain, islice
 from pathlib import Path
 from typing import Any
 
-from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data, require_tensorboard
+from ..learn import RAW_EDGES, VALIDATION_FRACTION, check_training_data
+from ..learn.logs import require_tensorboard
 from ..learn.training_state import SAVE_EVERY
 from ..models.ensemble import MAX_MEMBERS
 from ..runtime.memory import check, format_gb
@@ -339,7 +340,8 @@ def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
 
 def run_train(args: argparse.Namespace) -> int:
     from ..encoders import make_encoder
-    from ..workflow.train import NothingLearned, train_model
+    from ..learn import Run
+    from ..workflow import NothingLearned, Outputs, Validation, train
 
     # settings first: a bad value fails before any data is read or any training is done
     cfg = build_config(
@@ -368,26 +370,23 @@ def run_train(args: argparse.Namespace) -> int:
             raise UserError(f"--val-data {args.val_data}: no such file")
         heldout = read_jsonl(args.val_data)
     try:
-        train_model(
+        train(
             scenes,
             cfg,
-            encoder=encoder,
             seed=args.seed,
-            heldout=heldout,
-            fraction=args.val,
-            folds=args.folds,
-            out=args.out,
-            report=args.report,
-            plot=args.plot,
-            force=args.force,
-            log_dir=args.log_dir,
+            encoder=encoder,
+            validation=Validation(heldout=heldout, fraction=args.val, folds=args.folds),
+            outputs=Outputs(checkpoint=args.out, report=args.report, plot=args.plot, source=args.data),
             device=device,
             progress=not args.quiet,
-            source=args.data,
-            state=args.state or args.out.with_name(args.out.name + ".state"),
-            resume=args.resume,
-            save_every=args.save_every,
-            jobs=args.jobs,
+            run=Run(
+                log_dir=args.log_dir,
+                state=args.state or args.out.with_name(args.out.name + ".state"),
+                resume=args.resume,
+                save_every=args.save_every,
+                jobs=args.jobs,
+            ),
+            force=args.force,
         )
     except NothingLearned as e:
         raise UserError(

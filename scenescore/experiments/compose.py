@@ -41,7 +41,7 @@ import numpy as np
 import torch
 
 from ..evaluation.baselines import NeatNet, NeatNetConfig
-from ..learn import TrainConfig, train
+from ..learn import Run, TrainConfig, fit
 from ..scenarios.tv import TVScenario
 from ..scene.scene import Scene, SceneError
 from ..solvers import get, solve
@@ -119,7 +119,7 @@ def train_energy(
     on every node input). Without the encoder (``RAW_EDGES``, the network Fig. 4 was first measured
     with) seed 1's samples spread beyond the alignment tolerance: 2440 to 4459 correct of 5000 per
     level, against 4649 to 5000 with it. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
-    return train(scenes, train_config(quick), seed=seed, progress=progress, device=device, cache=cache)
+    return fit(scenes, train_config(quick), seed=seed, progress=progress, device=device, run=Run(cache=cache))
 
 
 def train_config(quick: bool = False) -> TrainConfig:

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from ..costs import Relation
-from ..learn import TrainConfig, train
+from ..learn import Run, TrainConfig, fit
 from ..models import ScoreModel
 from ..models.ensemble import member_seed
 from ..problem.problem import Problem
@@ -148,7 +148,9 @@ def train_relation(
     scenes, held = stream[:examples], stream[examples:]  # held: validation_examples(relation, seed, examples)
     best: tuple[float, ScoreModel] | None = None
     for m in range(restarts + 1):
-        model = train(scenes, cfg, seed=member_seed(seed, m), progress=progress, device=device, cache=cache)
+        model = fit(
+            scenes, cfg, seed=member_seed(seed, m), progress=progress, device=device, run=Run(cache=cache)
+        )
         worse = edge(model, relation, held, [EDGE_MOVE])[0].worse
         worse = 1.0 if math.isnan(worse) else worse
         if best is None or worse > best[0]:

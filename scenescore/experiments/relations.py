@@ -25,7 +25,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..learn import TrainConfig, train
+from ..learn import Run, TrainConfig, fit
 from ..learn.cache import run_cache
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
 from ..scene.scene import SceneError
@@ -127,7 +127,7 @@ def _models(
         t0 = time.perf_counter()
         scenes = whole_scene_training(sizes, seed, relations)
         # no bar of its own, as for the relation models: the experiment's bar counts (seed, size) pairs
-        whole = train(scenes, config, seed=seed, progress=False, device=device, cache=cache)
+        whole = fit(scenes, config, seed=seed, progress=False, device=device, run=Run(cache=cache))
         seconds[WHOLE] += time.perf_counter() - t0
     return models, whole, seconds
 

@@ -29,7 +29,7 @@ from typing import Any, cast
 import numpy as np
 
 from ..costs import Displacement
-from ..learn import TrainConfig, train
+from ..learn import Run, TrainConfig, fit
 from ..models import ScoreModel
 from ..planning.placement import place_many
 from ..planning.tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
@@ -265,7 +265,9 @@ def run_scenario(
     sc = get(name)
     t0 = time.perf_counter()
     train_s, test_s = sc.split(seed)
-    model = train(train_s, config or TrainConfig(), seed=seed, progress=progress, device=device, cache=cache)
+    model = fit(
+        train_s, config or TrainConfig(), seed=seed, progress=progress, device=device, run=Run(cache=cache)
+    )
     held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
     gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
     cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)

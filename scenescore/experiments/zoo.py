@@ -26,7 +26,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..evaluation.cases import MissingCase
-from ..learn import TrainConfig, split_validation, train
+from ..learn import Run, TrainConfig, fit, split_validation
 from ..models import ScoreModel
 from ..models.layout import BOUND_TOL
 from ..models.trust import energy_per_object
@@ -193,14 +193,14 @@ def run_one(
             raise SceneError(f"zoo: train_scenes must be 2 to {len(train_s)}, got {train_scenes}")
         train_s = train_s[:train_scenes]
     train_s, held = split_validation(train_s, val, seed=seed)
-    model = train(
+    model = fit(
         train_s,
         config or TrainConfig(),
         seed=seed,
         progress=progress,
         device=device,
         validation=held,
-        cache=cache,
+        run=Run(cache=cache),
     )
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it

@@ -1,4 +1,4 @@
-"""Training the energy with InfoNCE against Langevin counter-examples (:func:`train`).
+"""Training the energy with InfoNCE against Langevin counter-examples (:func:`fit`).
 
 Each iteration draws a batch of scenes, puts noise on their node inputs, advances their persistent
 counter-example chains a few steps (:class:`~scenescore.learn.negatives.ChainBuffer`), scores the true
@@ -22,7 +22,6 @@ import torch
 from tqdm.auto import tqdm
 
 from ..encoders import Encoder
-from ..errors import ConfigError, check_number
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
 from ..models.trust import reference
 from ..runtime.devices import draw, generator, resolve_device
@@ -33,96 +32,63 @@ from .config import Derived, TrainConfig, derive
 from .data import check_training_data
 from .logs import summary_writer
 from .losses import ABSENT, training_loss
-from .members import Run, train_members
+from .members import Job, train_members
 from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
+from .run import Run
 from .size_groups import SizeGroups
-from .training_state import SAVE_EVERY, Progress, Trainer, read_state, state_key, write_state
+from .training_state import Progress, Trainer, read_state, state_key, write_state
 
-__all__ = ["train", "fit", "moving_average", "check_run"]
+__all__ = ["fit", "moving_average"]
 
 
-def train(
+def fit(
     scenes: Sequence[Scene],
     config: TrainConfig | None = None,
-    encoder: Encoder | None = None,
+    *,
     seed: int = 0,
-    progress: bool = True,
+    encoder: Encoder | None = None,
     validation: Sequence[Scene] = (),
-    log_dir: str | os.PathLike | None = None,
     device: str | torch.device | None = None,
-    cache: str | os.PathLike | None = None,
-    state: str | os.PathLike | None = None,
-    resume: bool = False,
-    save_every: int = SAVE_EVERY,
-    keep_state: bool = False,
-    jobs: int | None = 1,
+    progress: bool = True,
+    run: Run | None = None,
 ) -> ScoreModel:
     """Train a :class:`ScoreModel` on example arrangements (every pose must be known).
 
     ``validation``: held-out scenes (not trained on) whose energies become the trust reference that
     placements are judged against; without them the training scenes' energies are used.
-    ``log_dir``: write a TensorBoard log there, every iteration's loss (``train/loss``, the InfoNCE loss
-    with its regularisers; ``train/infonce`` alone) and learning rate (``train/lr``);
-    :func:`~scenescore.learn.logs.log_validation` adds an evaluation's figures to it.
     ``device`` (default the CPU): where the model trains and stays; its weights start the same on every
     device (drawn on the CPU), its counter-examples' random numbers come from a generator there.
-    ``cache``: a folder where the model is kept, and loaded from instead of trained when the same
-    training ran before (:mod:`scenescore.learn.cache`; not with an ``encoder`` or a ``log_dir``).
-    ``state``: a file where the run writes where it stands every ``save_every`` iterations and at its
-    end (:mod:`scenescore.learn.training_state`: weights, optimiser, averaged weights, chains, random
-    streams, iteration), so that a killed run can go on. ``resume``: go on from that file when it exists
-    (else start from the beginning, saying so), to the model an uninterrupted run with this seed trains,
-    bit for bit on the CPU; a state of other scenes, settings, encoder, seed or device is
-    refused with a :class:`~scenescore.learn.training_state.StateError` naming the file. The file is
-    removed once training ends, unless ``keep_state`` (its last state holds the finished training, so
-    resuming from it trains no more; :func:`~scenescore.workflow.train.train_model` removes it once the
-    checkpoint is written).
-    ``jobs``: with ``config.members`` of 2 or more, the worker processes the members train in, side by
-    side, the ensemble the same whatever their number (None: one per usable core;
-    :func:`~scenescore.learn.members.train_members`). Spawned workers import the calling script again,
-    so a script that trains with ``jobs`` above 1 keeps its work under ``if __name__ == "__main__":``.
+    ``run``: where the run logs, caches and keeps its resumable state, and the worker processes an
+    ensemble's members train in (:class:`~scenescore.learn.run.Run`; default: none of these).
 
-    This is the training alone; :func:`scenescore.workflow.train.train_model` (``ss.train``) also holds
-    scenes out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
+    This is the training alone; :func:`scenescore.train` (:mod:`scenescore.workflow`) also holds scenes
+    out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
     """
     cfg = config or TrainConfig()
+    run = run or Run()
     dev = resolve_device(device)
-    check_run(scenes, save_every, state, resume)
+    check_training_data(scenes)
     if cfg.members > 1:
-        run = Run(
-            encoder, progress, validation, log_dir, device, cache, state, resume, save_every, keep_state
-        )
-        return train_members(train, scenes, cfg, seed, run, jobs)
-    cached = cached_path(cache, scenes, cfg, encoder, seed, validation, dev) if log_dir is None else None
+        return train_members(fit, scenes, cfg, seed, Job(encoder, progress, validation, device, run))
+    cached = None
+    if run.log_dir is None:
+        cached = cached_path(run.cache, scenes, cfg, encoder, seed, validation, dev)
     if cached is not None and cached.exists():
         return load(cached, device=dev)
-    from_state = _from_state(state, resume)
-    writer = summary_writer(log_dir) if log_dir is not None else None
+    from_state = _from_state(run.state, run.resume)
+    writer = summary_writer(run.log_dir) if run.log_dir is not None else None
     try:
         with torch_threads(1):  # large batches run in pieces side by side (EnergyNet.forward)
-            model = fit(
-                scenes, cfg, encoder, seed, progress, validation, writer, dev, state, from_state, save_every
-            )
+            model = _fit(scenes, cfg, encoder, seed, progress, validation, writer, dev, run, from_state)
     finally:
         if writer is not None:
             writer.close()
-    if state is not None and not keep_state:
-        Path(state).unlink(missing_ok=True)
+    if run.state is not None and not run.keep_state:
+        Path(run.state).unlink(missing_ok=True)
     if cached is not None:
         Path(cached).parent.mkdir(parents=True, exist_ok=True)
         model.save(cached)  # atomic: a worker training the same model at once writes the same file
     return model
-
-
-def check_run(
-    scenes: Sequence[Scene], save_every: int, state: str | os.PathLike | None, resume: bool
-) -> None:
-    """What :func:`train` refuses before it starts: bad training data, a bad ``save_every``, ``resume``
-    without the ``state`` file to resume from."""
-    check_training_data(scenes)
-    check_number("train", "save_every", save_every, 1, integer=True)
-    if resume and state is None:
-        raise ConfigError("train: resume=True needs the state file to resume from (state=...)")
 
 
 def _from_state(state: str | os.PathLike | None, resume: bool) -> bool:
@@ -142,7 +108,7 @@ def _from_state(state: str | os.PathLike | None, resume: bool) -> bool:
     return resume and there
 
 
-def fit(
+def _fit(
     scenes: Sequence[Scene],
     cfg: TrainConfig,
     encoder: Encoder | None,
@@ -151,14 +117,14 @@ def fit(
     validation: Sequence[Scene],
     writer: Any,
     device: torch.device,
-    state: str | os.PathLike | None = None,
-    resume: bool = False,
-    save_every: int = SAVE_EVERY,
+    run: Run,
+    resume: bool,
 ) -> ScoreModel:
-    """The training itself, on data :func:`train` checked: a new model, trained, its weights averaged,
-    its :class:`~scenescore.models.ModelInfo` filled (``writer``: a TensorBoard writer, or None).
-    ``state``: where to write the training state every ``save_every`` iterations and at the end;
-    ``resume``: start from the state there (which must exist)."""
+    """The training itself, on data :func:`fit` checked: a new model, trained, its weights averaged,
+    its :class:`~scenescore.models.ModelInfo` filled (``writer``: a TensorBoard writer, or None). The
+    training state goes to ``run.state`` every ``run.save_every`` iterations and at the end; ``resume``:
+    start from the state there (which must exist)."""
+    state, save_every = run.state, run.save_every
     torch.manual_seed(seed)
     gen = generator(seed, device)
     d = derive(cfg, scenes, encoder)
@@ -171,11 +137,11 @@ def fit(
     )
     t = Trainer(model, opt, sched, buf, gen)
     key = state_key(scenes, cfg, d.encoder, seed, device)
-    run = read_state(state, key, t) if resume and state is not None else Progress()
-    t0 = time.perf_counter() - run.seconds
+    done = read_state(state, key, t) if resume and state is not None else Progress()
+    t0 = time.perf_counter() - done.seconds
     bar = tqdm(
-        range(run.iteration, cfg.iterations),
-        initial=run.iteration,
+        range(done.iteration, cfg.iterations),
+        initial=done.iteration,
         total=cfg.iterations,
         desc="train",
         disable=not progress,
@@ -183,18 +149,18 @@ def fit(
         dynamic_ncols=True,
     )
     for it in bar:
-        _iterate(t, cfg, d, data, run, writer, it)
-        run.iteration, run.seconds = it + 1, time.perf_counter() - t0
-        if state is not None and (run.iteration % save_every == 0 or run.iteration == cfg.iterations):
-            write_state(state, key, run, t)
+        _iterate(t, cfg, d, data, done, writer, it)
+        done.iteration, done.seconds = it + 1, time.perf_counter() - t0
+        if state is not None and (done.iteration % save_every == 0 or done.iteration == cfg.iterations):
+            write_state(state, key, done, t)
         if it % 20 == 0:
-            bar.set_postfix(loss=f"{sum(run.history[-20:]) / len(run.history[-20:]):.3f}")
+            bar.set_postfix(loss=f"{sum(done.history[-20:]) / len(done.history[-20:]):.3f}")
     model.net.eval()
-    if run.shadow is not None:
+    if done.shadow is not None:
         with torch.no_grad():
-            for p, a in zip(model.net.parameters(), run.shadow, strict=True):
+            for p, a in zip(model.net.parameters(), done.shadow, strict=True):
                 p.copy_(a)
-    history = run.history
+    history = done.history
     model.info = ModelInfo(
         train_config=cfg.to_dict(),
         seed=seed,

@@ -15,7 +15,7 @@ import os
 import sys
 import tempfile
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 
@@ -30,28 +30,23 @@ from ..runtime.devices import resolve_device
 from ..runtime.workers import Log, default_jobs, map_in_workers
 from ..scene.scene import Scene
 from .config import TrainConfig, derive
-from .training_state import SAVE_EVERY
+from .run import Run
 
-__all__ = ["train_members", "train_groups", "member_state", "training_jobs", "Run", "Group"]
+__all__ = ["train_members", "train_groups", "member_state", "training_jobs", "Job", "Group"]
 
-Train = Callable[..., ScoreModel]  # train(scenes, cfg, encoder, seed, progress, validation, ...) as loop's
+Train = Callable[..., ScoreModel]  # fit(scenes, cfg, seed=..., encoder=..., ...) as loop's
 
 
 @dataclass(frozen=True)
-class Run:
-    """How :func:`~scenescore.learn.loop.train` was asked to run (everything but the data, the settings
-    and the seed), passed on to each member's training."""
+class Job:
+    """How :func:`~scenescore.learn.fit` was asked to train (everything but the data, the settings and
+    the seed), passed on to each member's training."""
 
     encoder: Encoder | None = None
     progress: bool = True
     validation: Sequence[Scene] = ()
-    log_dir: str | os.PathLike | None = None
     device: str | torch.device | None = None
-    cache: str | os.PathLike | None = None
-    state: str | os.PathLike | None = None
-    resume: bool = False
-    save_every: int = SAVE_EVERY
-    keep_state: bool = False
+    run: Run = field(default_factory=Run)
 
 
 def member_state(state: str | os.PathLike, member: int) -> Path:
@@ -76,22 +71,20 @@ def training_jobs(jobs: int | None, tasks: int, device: torch.device) -> int:
 
 @dataclass(frozen=True)
 class Group:
-    """One model to train: on ``scenes``, as ``run`` says (its ``validation`` its trust reference), named
+    """One model to train: on ``scenes``, as ``job`` says (its ``validation`` its trust reference), named
     ``label`` in the log lines of worker processes ("fold 2 of 3"; empty: the model)."""
 
     scenes: Sequence[Scene]
-    run: Run
+    job: Job
     label: str = ""
 
 
-def train_members(
-    one: Train, scenes: Sequence[Scene], cfg: TrainConfig, seed: int, run: Run, jobs: int | None = 1
-) -> ScoreModel:
+def train_members(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, seed: int, job: Job) -> ScoreModel:
     """``cfg.members`` networks, each trained by ``one`` (:func:`~scenescore.learn.loop.train`, which
     hands ensembles here) as the single model of its seed (kept in and loaded from the cache as that
     model, resumable from its own state file, :func:`member_state`), in ``jobs`` worker processes
     (:func:`training_jobs`); then their mean energy, its trust reference its own."""
-    return train_groups(one, [Group(scenes, run)], cfg, seed, jobs)[0]
+    return train_groups(one, [Group(scenes, job)], cfg, seed, job.run.jobs)[0]
 
 
 def train_groups(
@@ -101,54 +94,56 @@ def train_groups(
     (:func:`train_members`). Every network of every group trains in one pool of ``jobs`` worker
     processes (:func:`training_jobs`), so that a final model and its cross-validation's folds train side
     by side; each network is the one it would be alone, whatever the number of processes."""
-    dev = resolve_device(groups[0].run.device)
+    dev = resolve_device(groups[0].job.device)
     seeds = [member_seed(seed, m) for m in range(cfg.members)]
     tasks = [(g, m, s) for g in range(len(groups)) for m, s in enumerate(seeds)]
     n = training_jobs(jobs, len(tasks), dev)
     if n == 1:
-        nets = [_member(one, groups[g].scenes, cfg, groups[g].run, m, s) for g, m, s in tasks]
+        nets = [_member(one, groups[g].scenes, cfg, groups[g].job, m, s) for g, m, s in tasks]
     else:
-        if groups[0].run.progress:
+        if groups[0].job.progress:
             what = f"{cfg.members} members" if len(groups) == 1 else f"{len(tasks)} networks"
             print(f"training {what} in {n} worker processes", file=sys.stderr)
         with tempfile.TemporaryDirectory(prefix="scenescore-members-") as tmp:
-            quiet = [replace(g, run=replace(g.run, progress=False)) for g in groups]
+            quiet = [replace(g, job=replace(g.job, progress=False)) for g in groups]
             work = partial(_member_in_worker, one, quiet, cfg, tmp)
             bar = "members" if len(groups) == 1 else "trainings"
             paths = map_in_workers(work, tasks, jobs=n, log=_stderr, bar=bar)
             # each with the encoder its training derived (a footprint encoder reads sizes in the data's
             # unit), not the one given: a checkpoint read with that would encode the objects otherwise
-            used = [derive(replace(cfg, members=1), g.scenes, g.run.encoder).encoder for g in groups]
+            used = [derive(replace(cfg, members=1), g.scenes, g.job.encoder).encoder for g in groups]
             nets = [load(p, encoder=used[g], device=dev) for p, (g, _, _) in zip(paths, tasks)]
     k = cfg.members
     return [
         nets[g * k]
         if k == 1
-        else _mean_of(nets[g * k : (g + 1) * k], cfg, seed, grp.scenes, grp.run.validation)
+        else _mean_of(nets[g * k : (g + 1) * k], cfg, seed, grp.scenes, grp.job.validation)
         for g, grp in enumerate(groups)
     ]
 
 
-def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, run: Run, m: int, seed: int) -> ScoreModel:
+def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, job: Job, m: int, seed: int) -> ScoreModel:
     """Member ``m`` of the ensemble of ``cfg`` (the whole model for one network): the single model of
     ``seed``, trained in this process."""
     alone = cfg.members == 1
-    if run.progress and not alone:
+    if job.progress and not alone:
         print(f"member {m + 1} of {cfg.members} (seed {seed})", file=sys.stderr)
+    run = job.run
+    if not alone:  # each member logs and keeps its state beside the others'
+        run = replace(
+            run,
+            log_dir=None if run.log_dir is None else Path(run.log_dir) / f"member{m}",
+            state=None if run.state is None else member_state(run.state, m),
+        )
     return one(
         scenes,
         replace(cfg, members=1),
-        run.encoder,
-        seed,
-        run.progress,
-        run.validation,
-        run.log_dir if run.log_dir is None or alone else Path(run.log_dir) / f"member{m}",
-        run.device,
-        run.cache,
-        run.state if run.state is None or alone else member_state(run.state, m),
-        run.resume,
-        run.save_every,
-        run.keep_state,
+        seed=seed,
+        encoder=job.encoder,
+        validation=job.validation,
+        device=job.device,
+        progress=job.progress,
+        run=replace(run, jobs=1),
     )
 
 
@@ -159,7 +154,7 @@ def _member_in_worker(
     checkpoint in ``tmp``; its path."""
     g, m, seed = task
     grp = groups[g]
-    model = _member(one, grp.scenes, cfg, grp.run, m, seed)
+    model = _member(one, grp.scenes, cfg, grp.job, m, seed)
     path = str(Path(tmp) / f"group{g}-member{m}.ckpt")
     model.save(path)
     who = f"member {m + 1} of {cfg.members} (seed {seed})" if cfg.members > 1 else ""

@@ -2,9 +2,8 @@
 
 Placement has no sampler of its own: :func:`place` builds the :class:`~scenescore.problem.problem.Problem` of the
 learned energy with the unknown objects movable and solves it with the ``langevin`` solver under the
-placement defaults (:data:`PLACE`), on the threads :func:`~scenescore.runtime.threads.threads_for` chooses for its
-particles: one for the default 64, the run's budget (``--threads``, :func:`~scenescore.thread_budget`) for
-large batches. Several unknown objects start from :func:`in_turn`'s particles, found one object at a
+placement defaults (:data:`PLACE`), on one torch thread, a large population's energy in pieces side by
+side within the run's budget (``--threads``, :func:`~scenescore.thread_budget`). Several unknown objects start from :func:`in_turn`'s particles, found one object at a
 time and then moved in pairs, and then move together in the chain.
 """
 
@@ -23,7 +22,7 @@ from tqdm.auto import tqdm
 from ..costs import Cost, HingeCollision, LearnedEnergy
 from ..encoders import Encoder
 from ..geometry.poses import compose_poses
-from ..learn import TrainConfig, train
+from ..learn import Run, TrainConfig, fit
 from ..models import ScoreModel
 from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..runtime.devices import draw, generator
@@ -343,14 +342,14 @@ class SceneScorePlacer:
     cache: str | os.PathLike | None = None  # a model cache folder (see scenescore.learn.cache)
 
     def fit(self, scenes: list[Scene], seed: int = 0) -> SceneScorePlacer:
-        self.model = train(
+        self.model = fit(
             scenes,
             self.train_config,
             encoder=self.encoder,
             seed=seed,
             progress=self.progress,
             device=self.device,
-            cache=self.cache,
+            run=Run(cache=self.cache),
         )
         return self
 

@@ -6,7 +6,7 @@ reaches it only through the names below, a test enforces it: where tensors live 
 numbers come from (:func:`resolve_device`, :func:`generator`, :func:`draw`), the memory budget's check
 before a large allocation and the chunks it sets (:func:`check_memory`, :func:`chunk_rows`,
 :func:`return_freed_memory`), and the pieces a large batch is cut into (:func:`in_parallel`,
-:func:`threads_for`, :data:`POOL_ROWS`, :func:`usable_cores`, :func:`torch_threads`).
+:data:`POOL_ROWS`, :func:`usable_cores`, :func:`torch_threads`).
 
 The edge (training, the workflow, experiments, the command line) sets the budgets and starts workers
 through the modules themselves: ``threads`` (:func:`~scenescore.runtime.threads.thread_budget`),
@@ -19,7 +19,7 @@ from .cores import usable_cores
 from .devices import draw, generator, resolve_device
 from .memory import MemoryBudgetError, chunk_rows, return_freed_memory
 from .memory import check as check_memory
-from .threads import POOL_ROWS, in_parallel, threads_for, torch_threads
+from .threads import POOL_ROWS, in_parallel, torch_threads
 
 __all__ = [
     "resolve_device",
@@ -30,7 +30,6 @@ __all__ = [
     "return_freed_memory",
     "MemoryBudgetError",
     "in_parallel",
-    "threads_for",
     "torch_threads",
     "POOL_ROWS",
     "usable_cores",

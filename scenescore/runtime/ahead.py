@@ -26,10 +26,9 @@ class Ahead:
 
     Torch's thread setting and MKL's are shared between threads, so the answers are those of calling the
     work directly only when it and the caller's own work both run on one torch thread; the caller checks
-    that (every batch below :data:`~scenescore.runtime.threads.POOL_ROWS` rows, where
-    :func:`~scenescore.runtime.threads.threads_for` gives one) before it submits. Use it as a context
-    manager: leaving
-    cancels what has not started and waits for what has.
+    that (every batch below :data:`~scenescore.runtime.threads.POOL_ROWS` rows, which runs on one)
+    before it submits. Use it as a context manager: leaving cancels what has not started and waits for
+    what has.
     """
 
     def __init__(self) -> None:

@@ -11,8 +11,7 @@ a result never depends on the load.
 - :func:`thread_budget` sets the run's budget (``--threads`` on the command line, ``ss.thread_budget``
   in scripts): the most pieces that run at once. Without one the budget is torch's own setting.
 - :func:`workers` is how many run at once: the budget when given, else the budget capped by the cores
-  other processes leave free (:func:`~scenescore.runtime.cores.free_cores`);
-  :func:`threads_for` is one below :data:`POOL_ROWS` pose sets, else :func:`workers`.
+  other processes leave free (:func:`~scenescore.runtime.cores.free_cores`).
 - :func:`torch_threads` runs a block on ``n`` torch threads and restores the caller's setting. It sets
   torch's own count (``torch.set_num_threads``), not threadpoolctl's OpenMP limit, which leaves torch's
   per-thread MKL setting and its own count as they were.
@@ -39,13 +38,13 @@ __all__ = [
     "MAX_THREADS",
     "thread_budget",
     "budget",
-    "threads_for",
     "torch_threads",
     "in_parallel",
     "workers",
 ]
 
-#: pose sets from which a batch's tensors are big enough to pay for torch's thread pool
+#: pose sets from which a batch of the learned energy is taken to keep every core busy (below it, work
+#: computed ahead on a second core can pay: :mod:`~scenescore.runtime.ahead`)
 POOL_ROWS = 256
 MAX_THREADS = 1024  # more is a typo, not a plan
 
@@ -87,11 +86,6 @@ def thread_budget(n: int | None = None) -> Iterator[int]:
     finally:
         _budget = old_budget
         torch.set_num_threads(old_threads)
-
-
-def threads_for(rows: int) -> int:
-    """Threads for a batch of ``rows`` pose sets: one below :data:`POOL_ROWS` rows, else :func:`workers`."""
-    return 1 if rows < POOL_ROWS else workers()
 
 
 def workers() -> int:

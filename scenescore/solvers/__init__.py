@@ -13,7 +13,7 @@ particle. One module per solver:
 
 from __future__ import annotations
 
-from .base import Solver, StageSolver, start_poses, torch_threads
+from .base import Solver, StageSolver, start_poses
 from .chain import Chain
 from .registry import available, get, option_names, register, solve
 from .result import Result, Status, make_result
@@ -31,5 +31,4 @@ __all__ = [
     "solve",
     "make_result",
     "start_poses",
-    "torch_threads",
 ]

@@ -46,7 +46,7 @@ from torch import Tensor
 from ..costs import ConstraintCost
 from ..errors import ConfigError, check_number
 from ..problem.problem import FEASIBILITY_TOL, Problem
-from .base import StageSolver, start_poses, threads_for
+from .base import StageSolver, start_poses
 from .result import Result, Status, best_first, make_result
 
 __all__ = ["ALMOptions", "ALMSolver", "ParticleStatus"]
@@ -73,9 +73,6 @@ class ALMOptions:
     step: float = 0.01  # a gradient step's largest coordinate move (metres; radians for an angle)
     step_max: float = 0.1  # the largest move of any coordinate in one step
     polish: bool = True  # keep minimising the objective once feasible; False: a particle stops when feasible
-    # torch threads; None: one, with large batches of the learned energy in pieces side by side on the
-    # free cores (scenescore.runtime.threads.in_parallel), whose answers never depend on the load
-    threads: int | None = None
 
     def __post_init__(self) -> None:
         check_number("alm", "iterations", self.iterations, 0, MAX_ITERATIONS, integer=True)
@@ -89,8 +86,6 @@ class ALMOptions:
         check_number("alm", "penalty_max", self.penalty_max, self.penalty)
         if not isinstance(self.polish, bool):
             raise ConfigError(f"alm: polish: expected true or false, got {self.polish!r}")
-        if self.threads is not None:
-            check_number("alm", "threads", self.threads, 1, 1024, integer=True)
 
 
 class ParticleStatus:
@@ -358,10 +353,6 @@ class ALMSolver(StageSolver):
     name = "alm"
     options_cls = ALMOptions
     takes_batch = True
-
-    def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """``threads_for`` the particles: the free cores within the budget for 256 or more, one for fewer."""
-        return threads_for(1 if init is None else problem.full(init).shape[0])
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         o = self.options

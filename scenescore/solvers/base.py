@@ -1,5 +1,4 @@
-"""The solver protocol, the base of the built-in stages, and what stages share (start poses, threads:
-:mod:`scenescore.runtime.threads`)."""
+"""The solver protocol, the base of the built-in stages, and what stages share (start poses)."""
 
 from __future__ import annotations
 
@@ -9,10 +8,10 @@ import torch
 from torch import Tensor
 
 from ..problem.problem import Problem
-from ..runtime import POOL_ROWS, generator, threads_for, torch_threads
+from ..runtime import generator, torch_threads
 from .result import Result
 
-__all__ = ["Solver", "StageSolver", "start_poses", "POOL_ROWS", "threads_for", "torch_threads"]
+__all__ = ["Solver", "StageSolver", "start_poses"]
 
 
 class Solver(Protocol):
@@ -25,10 +24,9 @@ class Solver(Protocol):
 
 
 class StageSolver:
-    """Base of the built-in solvers: options from keyword arguments (``options_cls``, which has a
-    ``threads`` field), and ``solve`` run on that many torch threads; with ``None`` on one, the learned
-    energy's large batches in pieces side by side (:func:`~scenescore.runtime.threads.in_parallel`), and the
-    result's ``threads`` is :meth:`default_threads`."""
+    """Base of the built-in solvers: options from keyword arguments (``options_cls``), and ``solve`` run
+    on one torch thread, the learned energy's large batches in pieces side by side within the run's
+    thread budget (:func:`~scenescore.runtime.in_parallel`, ``ss.thread_budget``)."""
 
     name: ClassVar[str] = "stage"
     options_cls: ClassVar[type]
@@ -40,16 +38,8 @@ class StageSolver:
 
     def solve(self, problem: Problem, init: Tensor | None = None, seed: int = 0) -> Result:
         """``solve(problem, init=None, seed=0) -> Result``."""
-        pinned = self.options.threads
-        with torch_threads(1 if pinned is None else pinned) as used:
-            r = self._solve(problem, init, seed)
-        r.threads = used if pinned is not None else self.default_threads(problem, init)
-        return r
-
-    def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """The threads a solve's work runs on at once when the options leave it open: one (tiny
-        tensors); batched stages override."""
-        return 1
+        with torch_threads(1):
+            return self._solve(problem, init, seed)
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:  # pragma: no cover
         raise NotImplementedError

@@ -36,7 +36,6 @@ class CasadiOptions:
     max_iter: int = 300
     tol: float = 1e-8
     constr_viol_tol: float = 1e-7
-    threads: int | None = None  # torch threads (callbacks); None: one
 
     def __post_init__(self) -> None:
         if self.energy not in ("mx", "callback"):
@@ -44,8 +43,6 @@ class CasadiOptions:
         check_number("casadi", "max_iter", self.max_iter, 0, 1_000_000, integer=True)
         check_number("casadi", "tol", self.tol, 0, open_lo=True)
         check_number("casadi", "constr_viol_tol", self.constr_viol_tol, 0, open_lo=True)
-        if self.threads is not None:
-            check_number("casadi", "threads", self.threads, 1, 1024, integer=True)
 
 
 class _Built:

@@ -53,7 +53,6 @@ class Chain:
             sample_costs=None if sampled is None else sampled.sample_costs,
             sample_status=None if sampled is None else sampled.sample_status,
             sample_violations=None if sampled is None else sampled.sample_violations,
-            threads=max(r.threads for r in results),
         )
         out.stages = results
         return out

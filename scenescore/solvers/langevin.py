@@ -32,8 +32,8 @@ from ..costs.base import stack_sums
 from ..costs.guide import doubt_note
 from ..errors import ConfigError, check_number
 from ..problem.problem import FEASIBILITY_TOL, Problem, ProblemError
-from ..runtime import check_memory, generator
-from .base import StageSolver, threads_for, torch_threads
+from ..runtime import check_memory, generator, torch_threads
+from .base import StageSolver
 from .kernel import SAMPLING, LangevinConfig, langevin, screen
 from .projection import LinearisedProjection
 from .result import Result, Status, best_first, make_result
@@ -51,7 +51,7 @@ __all__ = ["LangevinOptions", "LangevinSolver"]
 
 @dataclass(frozen=True)
 class LangevinOptions:
-    """Options of the ``langevin`` solver: the population, its start, projections, threads, and the
+    """Options of the ``langevin`` solver: the population, its start, projections, and the
     chain's schedule (a :class:`~scenescore.solvers.kernel.LangevinConfig`, default :data:`~scenescore.solvers.kernel.SAMPLING`).
 
     From YAML or ``ss.solve(..., options={"langevin": {...}})`` the schedule's fields are given flat
@@ -64,9 +64,6 @@ class LangevinOptions:
     # (the learned energy: its data's poses relative to the scene's known objects; Problem.initial)
     proposals: float = 0.0
     projection: str = "closed_form"  # "none", "closed_form", or "qp" (also the linearised non-overlap QP)
-    # torch threads; None: one, with large batches of the learned energy in pieces side by side on the
-    # free cores (scenescore.runtime.threads.in_parallel), whose answers never depend on the load
-    threads: int | None = None
     chain: LangevinConfig = SAMPLING
     # the answer: among the feasible particles (else all), those that no guiding term doubts first
     # (Problem.doubted; the learned energy: no object at a bound its category never comes near, or
@@ -82,8 +79,6 @@ class LangevinOptions:
         check_number("langevin", "particles", self.particles, 1, MAX_PARTICLES, integer=True)
         check_number("langevin", "candidates", self.candidates, 0, MAX_CANDIDATES, integer=True)
         check_number("langevin", "proposals", self.proposals, 0.0, 1.0)
-        if self.threads is not None:
-            check_number("langevin", "threads", self.threads, 1, 1024, integer=True)
         if not isinstance(self.trusted_first, bool):
             raise ConfigError(f"langevin: trusted_first: expected true or false, got {self.trusted_first!r}")
         if not isinstance(self.chain, LangevinConfig):
@@ -118,11 +113,6 @@ class LangevinSolver(StageSolver):
             raise TypeError("langevin: give LangevinOptions or keyword options, not both")
         self.options = options if options is not None else LangevinOptions.from_flat(**flat)
 
-    def default_threads(self, problem: Problem, init: Tensor | None = None) -> int:
-        """``threads_for`` the population: the free cores within the budget for large ones (their energy
-        in pieces side by side), one for small ones."""
-        return threads_for(self.options.particles)
-
     def solve_many(
         self, problems: Sequence[Problem], seed: int = 0, init: Sequence[Tensor] | None = None
     ) -> list[Result]:
@@ -135,12 +125,8 @@ class LangevinSolver(StageSolver):
             raise ProblemError(
                 f"langevin: init: expected {len(problems)} starts, one per problem, got {len(init)}"
             )
-        pinned = self.options.threads
-        with torch_threads(1 if pinned is None else pinned) as used:
-            out = self._run(list(problems), None if init is None else list(init), seed)
-        for r in out:
-            r.threads = used if pinned is not None else threads_for(self.options.particles * len(problems))
-        return out
+        with torch_threads(1):  # large batches of the learned energy go in pieces side by side
+            return self._run(list(problems), None if init is None else list(init), seed)
 
     def _solve(self, problem: Problem, init: Tensor | None, seed: int) -> Result:
         return self._run([problem], init, seed)[0]

@@ -61,7 +61,6 @@ class Result:
     sample_violations: np.ndarray | None = None  # (B,) each sample's largest violation (metres)
     stages: list[Result] = field(default_factory=list)
     problem: Problem | None = field(default=None, repr=False)
-    threads: int = 1  # torch threads the solve ran on
     qp_time_mean: float | None = None  # seconds per QP, for solvers that solve QPs
     wall_time: float | None = None  # seconds from ss.solve's call to its return (set by ss.solve)
     # each moving object a guiding term judges (the learned energy: by its data), by name
@@ -210,7 +209,6 @@ def make_result(
     sample_status: np.ndarray | None = None,
     sample_violations: np.ndarray | torch.Tensor | None = None,
     tol: float = FEASIBILITY_TOL,
-    threads: int = 1,
 ) -> Result:
     """Evaluate ``poses (N, 3)`` on the problem: terms, violations, the exact feasibility check."""
     x = problem.full(poses)[:1]
@@ -265,6 +263,5 @@ def make_result(
         sample_status=None if sample_status is None else np.asarray(sample_status, dtype=str),
         sample_violations=None if sample_violations is None else _numpy(sample_violations),
         problem=problem,
-        threads=threads,
         confidence=confidence,
     )

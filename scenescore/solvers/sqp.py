@@ -58,7 +58,6 @@ class SQPOptions:
     qp_eps_abs: float = 1e-6  # OSQP's absolute tolerance for each step's QP
     qp_eps_rel: float = 1e-6  # OSQP's relative tolerance for each step's QP
     qp_max_iter: int = 4000  # OSQP's iterations per QP (its answer is used when it runs out)
-    threads: int | None = None  # torch threads; None: one (tiny tensors)
 
     def __post_init__(self) -> None:
         check_number("osqp", "max_iter", self.max_iter, 0, MAX_ITER, integer=True)
@@ -82,8 +81,6 @@ class SQPOptions:
                 f"osqp: trust_init: expected trust_min <= trust_init <= trust_max, got {self.trust_min:g}, "
                 f"{self.trust_init:g}, {self.trust_max:g}"
             )
-        if self.threads is not None:
-            check_number("osqp", "threads", self.threads, 1, 1024, integer=True)
 
 
 class _Refinement:

@@ -3,6 +3,6 @@
 evaluates, calibrates tidying and saves."""
 
 from .crossval import cross_validate
-from .train import NothingLearned, holdout, train_model
+from .training import NothingLearned, Outputs, Validation, holdout, train
 
-__all__ = ["NothingLearned", "cross_validate", "holdout", "train_model"]
+__all__ = ["NothingLearned", "Outputs", "Validation", "cross_validate", "holdout", "train"]

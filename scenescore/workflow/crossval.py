@@ -4,7 +4,7 @@ With a dozen scenes, holding four out for validation trains the model on two thi
 judges it on four scenes. Instead, :func:`cross_validate` splits the scenes into ``folds`` parts, trains
 one model on all but each part and places that part's objects back with it; the figures of the folds
 are pooled into one report (:func:`pooled`), which stands for the final model trained on every scene
-(:func:`~scenescore.workflow.train.train_model` does that, through :func:`train_and_cross_validate`,
+(:func:`~scenescore.workflow.training.train` does that, through :func:`train_and_cross_validate`,
 which trains the final model's networks and the folds' in one pool of worker processes). It costs
 ``folds`` more trainings.
 """
@@ -22,8 +22,9 @@ import torch
 from ..encoders import Encoder
 from ..evaluation.report import CategoryErrors, EvalReport, evaluate
 from ..learn.config import TrainConfig
-from ..learn.loop import train
-from ..learn.members import Group, Run, train_groups, training_jobs
+from ..learn.loop import fit
+from ..learn.members import Group, Job, train_groups, training_jobs
+from ..learn.run import Run
 from ..models import ScoreModel
 from ..runtime.devices import resolve_device
 from ..runtime.workers import map_in_workers
@@ -100,39 +101,39 @@ def cross_validate(
     scenes; the pooled report of every fold. ``jobs``: worker processes the folds' trainings and
     placements run in, side by side (the report the same whatever their number; None: one per usable
     core)."""
-    run = Run(encoder=encoder, progress=progress, device=device)
-    return train_and_cross_validate(scenes, cfg, folds, run, seed=seed, say=say, jobs=jobs, final=False)[1]
+    job = Job(encoder=encoder, progress=progress, device=device, run=Run(jobs=jobs))
+    return train_and_cross_validate(scenes, cfg, folds, job, seed=seed, say=say, final=False)[1]
 
 
 def train_and_cross_validate(
     scenes: Sequence[Scene],
     cfg: TrainConfig,
     folds: int,
-    run: Run,
+    job: Job,
     *,
     seed: int = 0,
     say: Callable[[str], None] = print,
-    jobs: int | None = 1,
     final: bool = True,
 ) -> tuple[ScoreModel | None, EvalReport]:
-    """:func:`cross_validate`, the folds trained as ``run`` says (its encoder, device and progress), and
-    with ``final`` the final model on every scene too, trained as ``run`` says in full (its state file,
-    log, ...), its networks in one pool of ``jobs`` worker processes with the folds'
-    (:func:`train_groups`): ``(final model or None, pooled report)``. Each model is the one it would be
-    trained alone."""
+    """:func:`cross_validate`, the folds trained as ``job`` says (its encoder, device and progress), and
+    with ``final`` the final model on every scene too, trained as ``job`` says in full (its state file,
+    log, ...), its networks in one pool of ``job.run.jobs`` worker processes with the folds'
+    (:func:`~scenescore.learn.members.train_groups`): ``(final model or None, pooled report)``. Each
+    model is the one it would be trained alone."""
     splits = fold_splits(scenes, folds, seed)
-    fold_run = Run(encoder=run.encoder, progress=run.progress, device=run.device)
-    groups = [Group(scenes, run, "the final model")] if final else []
+    jobs = job.run.jobs
+    fold_job = Job(encoder=job.encoder, progress=job.progress, device=job.device, run=Run(jobs=jobs))
+    groups = [Group(scenes, job, "the final model")] if final else []
     for f, (train_s, held) in enumerate(splits):
         say(
             f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}"
         )
-        groups.append(Group(train_s, replace(fold_run, validation=held), f"fold {f + 1} of {folds}"))
-    models = train_groups(train, groups, cfg, seed, jobs)
-    n = training_jobs(jobs, folds, resolve_device(run.device))
-    place = partial(_place_fold, seed, run.progress and n == 1)
+        groups.append(Group(train_s, replace(fold_job, validation=held), f"fold {f + 1} of {folds}"))
+    models = train_groups(fit, groups, cfg, seed, jobs)
+    n = training_jobs(jobs, folds, resolve_device(job.device))
+    place = partial(_place_fold, seed, job.progress and n == 1)
     tasks = [(m, held, train_s) for m, (train_s, held) in zip(models[-folds:], splits)]
-    reports = map_in_workers(place, tasks, jobs=n, log=say, bar="folds" if run.progress else None)
+    reports = map_in_workers(place, tasks, jobs=n, log=say, bar="folds" if job.progress else None)
     return (models[0] if final else None), pooled(reports)
 
 

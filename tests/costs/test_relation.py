@@ -11,7 +11,7 @@ import torch
 
 import scenescore as ss
 from scenescore.costs import CostError, Relation
-from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.learn import NetworkConfig, TrainConfig, fit
 from scenescore.problem.files import load_problem
 from scenescore.problem.problem import ProblemError
 from scenescore.scenarios import get
@@ -125,7 +125,7 @@ def test_a_trained_left_of_prefers_left_of_to_its_mirror_in_a_new_scene():
     cfg = TrainConfig(
         iterations=100, batch_scenes=16, negatives=8, network=NetworkConfig(hidden=32, layers=2)
     )
-    model = train(scenario.generate(64, 0), cfg, seed=0, progress=False)
+    model = fit(scenario.generate(64, 0), cfg, seed=0, progress=False)
     gaps = []
     for s in scenario.generate(12, 5):
         objs = [

@@ -9,7 +9,7 @@ import torch
 from scenescore.cli import main
 from scenescore.experiments import heatmap, novel
 from scenescore.experiments.tasks import Sweep
-from scenescore.learn import TrainConfig, train
+from scenescore.learn import TrainConfig, fit
 from scenescore.planning.heatmap import energy_grid, grid_minimum
 from scenescore.scenarios import DeskScenario
 
@@ -58,7 +58,7 @@ def test_experiment_novel_cli_writes_results(tmp_path):
 @pytest.fixture(scope="module")
 def desk_model():
     torch.manual_seed(0)
-    return train(
+    return fit(
         DeskScenario().generate(4, 0), TrainConfig(iterations=3, batch_scenes=4), seed=0, progress=False
     )
 

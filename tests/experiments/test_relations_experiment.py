@@ -159,13 +159,13 @@ def test_each_seed_and_size_is_a_task_and_a_seeds_models_are_trained_once(tmp_pa
     from scenescore.learn import loop
 
     fits = []
-    real = loop.fit
+    real = loop._fit
 
     def counted(*a, **k):
         fits.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(loop, "fit", counted)
+    monkeypatch.setattr(loop, "_fit", counted)
     lines: list[str] = []
     settings = dict(
         problems=1, tries=1, pool=2, methods=["Relations (langevin>alm)"], relations=["left_of", "near"],

@@ -310,10 +310,10 @@ def test_place_particles_zero_is_refused(model_path):
 
 
 def test_train_refuses_one_object_scenes():
-    from scenescore.learn import TrainConfig, train
+    from scenescore.learn import TrainConfig, fit
 
     s = Scene.from_dict(dict(SCENE, objects=SCENE["objects"][:1]))
-    expect(lambda: train([s, s], TrainConfig(iterations=1), progress=False), SceneError, "no example scene")
+    expect(lambda: fit([s, s], TrainConfig(iterations=1), progress=False), SceneError, "no example scene")
 
 
 def test_with_poses_of_the_wrong_shape():

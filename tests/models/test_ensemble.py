@@ -16,7 +16,7 @@ import torch
 import scenescore as ss
 from scenescore.cli import main
 from scenescore.errors import ConfigError
-from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.learn import NetworkConfig, Run, TrainConfig, fit
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
 from scenescore.models.trust import assess, member_shares
@@ -33,13 +33,13 @@ def scenes():
 
 @pytest.fixture(scope="module")
 def ensemble(scenes):
-    return train(scenes, replace(CFG, members=2), seed=SEED, progress=False)
+    return fit(scenes, replace(CFG, members=2), seed=SEED, progress=False)
 
 
 def test_each_member_is_the_single_model_of_its_seed(scenes, ensemble):
     assert ensemble.members == 2
     assert [m["seed"] for m in ensemble.info.members] == [SEED, member_seed(SEED, 1)] == [3, 1003]
-    single = train(scenes, CFG, seed=member_seed(SEED, 1), progress=False)
+    single = fit(scenes, CFG, seed=member_seed(SEED, 1), progress=False)
     second = members_of(ensemble.net)[1]
     for a, b in zip(second.state_dict().values(), single.net.state_dict().values(), strict=True):
         assert torch.equal(a, b)  # the same training, op for op
@@ -138,7 +138,7 @@ def test_train_members_on_the_command_line(tmp_path, scenes, capsys):
 def test_members_trained_in_worker_processes_are_the_same_ensemble(scenes, ensemble):
     """Each member trains on one torch thread, so training them side by side in two spawned worker
     processes gives the ensemble one process trains, weights and trust reference alike."""
-    apart = train(scenes, replace(CFG, members=2), seed=SEED, progress=False, jobs=2)
+    apart = fit(scenes, replace(CFG, members=2), seed=SEED, progress=False, run=Run(jobs=2))
     assert apart.members == 2 and [m["seed"] for m in apart.info.members] == [3, 1003]
     mine, theirs = ensemble.net.state_dict(), apart.net.state_dict()
     assert mine.keys() == theirs.keys()
@@ -151,7 +151,7 @@ def test_members_trained_in_worker_processes_are_the_same_ensemble(scenes, ensem
 @pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
 def test_jobs_must_be_a_whole_number_of_processes(scenes, jobs):
     with pytest.raises(ConfigError, match="jobs"):
-        train(scenes, replace(CFG, members=2), seed=SEED, progress=False, jobs=jobs)
+        fit(scenes, replace(CFG, members=2), seed=SEED, progress=False, run=Run(jobs=jobs))
 
 
 def test_cross_validation_folds_in_worker_processes_report_the_same(scenes):

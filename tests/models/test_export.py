@@ -13,7 +13,7 @@ ort = pytest.importorskip("onnxruntime")
 
 from scenescore.cli import main  # noqa: E402
 from scenescore.encoders import FootprintEncoder  # noqa: E402
-from scenescore.learn import NetworkConfig, TrainConfig, train  # noqa: E402
+from scenescore.learn import NetworkConfig, TrainConfig, fit  # noqa: E402
 from scenescore.models import ScoreModel  # noqa: E402
 from scenescore.models.ensemble import EnsembleNet  # noqa: E402
 from scenescore.models.export import (  # noqa: E402
@@ -38,7 +38,7 @@ def trained(tmp_path_factory):
     cfg = TrainConfig(
         iterations=3, batch_scenes=4, negatives=4, walls=True, network=NetworkConfig(hidden=16, layers=2)
     )
-    model = train(scenes, cfg, seed=0, progress=False)
+    model = fit(scenes, cfg, seed=0, progress=False)
     d = tmp_path_factory.mktemp("export")
     model.save(d / "m.ckpt")
     scenes[0].to_json(d / "scene.json")

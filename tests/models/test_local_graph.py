@@ -9,7 +9,9 @@ import torch
 
 import scenescore as ss
 from scenescore.errors import ConfigError
-from scenescore.learn import LOCAL_FROM, LR_DENSE, LR_LOCAL, TrainConfig, derive, local_radius
+from scenescore.learn import TrainConfig, derive
+from scenescore.learn.config import LOCAL_FROM, LR_DENSE, LR_LOCAL
+from scenescore.learn.data import local_radius
 from scenescore.models.export import export_onnx
 from scenescore.models.graph import fade, neighbour_graph
 from scenescore.models.network import EnergyConfig, EnergyNet

@@ -11,7 +11,7 @@ import torch
 import scenescore as ss
 from scenescore.costs import LearnedEnergy
 from scenescore.costs.guide import Alternatives
-from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.learn import NetworkConfig, TrainConfig, fit
 from scenescore.models.rivals import RIVAL_DISTANCE, RIVAL_MARGIN, matched_distances, rivals
 from scenescore.solvers import Status, make_result
 
@@ -50,7 +50,7 @@ def model():
     torch.set_num_threads(1)
     sc = ss.scenarios.get("dining")
     cfg = TrainConfig(iterations=20, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2))
-    return train(sc.generate(12, 3), cfg, seed=0, progress=False), sc.generate(1, 4)[0]
+    return fit(sc.generate(12, 3), cfg, seed=0, progress=False), sc.generate(1, 4)[0]
 
 
 def _placing(scene: ss.Scene, name: str) -> ss.Scene:

@@ -10,7 +10,7 @@ import torch
 from conftest import rounding_tolerance
 
 import scenescore as ss
-from scenescore.learn import NetworkConfig, TrainConfig, train
+from scenescore.learn import NetworkConfig, TrainConfig, fit
 from scenescore.models.trust import TrustReference, assess, energy_shares
 from scenescore.planning.placement import PLACE, place
 
@@ -23,7 +23,7 @@ def dining():
     sc = ss.scenarios.get("dining")
     tr, te = sc.generate(12, 3), sc.generate(4, 4)
     cfg = TrainConfig(iterations=40, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2))
-    return train(tr, cfg, seed=0, progress=False, validation=te), tr, te
+    return fit(tr, cfg, seed=0, progress=False, validation=te), tr, te
 
 
 def test_training_stores_the_reference(dining):

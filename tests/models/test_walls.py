@@ -9,7 +9,8 @@ import pytest
 import torch
 
 import scenescore as ss
-from scenescore.learn import NetworkConfig, TrainConfig, stands_against_walls, train
+from scenescore.learn import NetworkConfig, TrainConfig, fit
+from scenescore.learn.data import stands_against_walls
 from scenescore.models.batching import wall_objects
 from scenescore.models.network import WALLS, edge_features, wall_nodes
 
@@ -58,11 +59,11 @@ def test_training_decides_walls_from_the_data():
     dining = ss.scenarios.get("dining").generate(8, 0)
     assert stands_against_walls(lounge) and not stands_against_walls(dining)
     cfg = TrainConfig(iterations=2, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1))
-    assert train(lounge, cfg, seed=0, progress=False).config.walls
-    assert not train(dining, cfg, seed=0, progress=False).config.walls
+    assert fit(lounge, cfg, seed=0, progress=False).config.walls
+    assert not fit(dining, cfg, seed=0, progress=False).config.walls
     from dataclasses import replace
 
-    assert not train(lounge, replace(cfg, walls=False), seed=0, progress=False).config.walls
+    assert not fit(lounge, replace(cfg, walls=False), seed=0, progress=False).config.walls
 
 
 def _wall_model(wall_range: float | None, wall_lines: bool = False) -> ss.models.ScoreModel:
@@ -158,11 +159,11 @@ def test_training_reads_walls_as_lines_by_default_and_only_with_walls():
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
     cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1))
-    m = train(lounge, cfg, seed=0, progress=False)
+    m = fit(lounge, cfg, seed=0, progress=False)
     assert m.config.wall_lines and m.config.wall_range is None  # the defaults: lines, linear
     boxes = replace(cfg, wall_lines=False)
-    assert not train(lounge, boxes, seed=0, progress=False).config.wall_lines
-    plain = train(dining, cfg, seed=0, progress=False).config
+    assert not fit(lounge, boxes, seed=0, progress=False).config.wall_lines
+    plain = fit(dining, cfg, seed=0, progress=False).config
     assert not plain.wall_lines and plain.wall_range is None  # no walls: neither
-    m = train(lounge, replace(boxes, wall_range=2.0), seed=0, progress=False)
+    m = fit(lounge, replace(boxes, wall_range=2.0), seed=0, progress=False)
     assert not m.config.wall_lines and m.config.wall_range == 2.0

@@ -13,10 +13,9 @@ import numpy as np
 from ...models import ScoreModel
 from ...problem.problem import Problem
 from ...runtime.ahead import Ahead
-from ...runtime.threads import POOL_ROWS
+from ...runtime.threads import POOL_ROWS, torch_threads
 from ...scene.scene import Scene
 from ...solvers import Status, make_result
-from ...solvers.base import torch_threads
 from ..placement import PLACE
 from .problem import tidy_problem
 from .pruning import blanked_scenes, place_again, prune_moves, refine_and_plan
@@ -102,7 +101,6 @@ def _placing_ahead(
     if (
         len(scenes) != 1
         or not o.place
-        or o.propose.threads not in (None, 1)
         or o.propose.particles * max(len(problems[0].movable) + SWAP_CANDIDATES, pairs) >= POOL_ROWS
         or not Ahead.worth()
     ):

@@ -1,9 +1,9 @@
-"""The training workflow, as ``scenescore train`` runs it and ``ss.train`` returns it (:func:`train_model`).
+"""The training workflow, as ``scenescore train`` runs it and ``ss.train`` returns it (:func:`train`).
 
 Hold scenes out, train on the rest, refuse a model that learned nothing, evaluate on the held-out
 scenes (with little data: train on every scene and cross-validate, :mod:`~scenescore.workflow.crossval`),
 draw the learning curve, calibrate what a tidying move must gain, save the checkpoint and the report.
-The command line only reads its files and calls :func:`train_model`, so the model a script gets from
+The command line only reads its files and calls :func:`train`, so the model a script gets from
 ``ss.train(scenes, seed=s)`` is the one ``scenescore train data.jsonl --seed s`` saves.
 """
 
@@ -13,6 +13,7 @@ import json
 import os
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -21,11 +22,11 @@ import torch
 from ..encoders import Encoder
 from ..evaluation.report import EvalReport, evaluate
 from ..learn.config import TrainConfig
-from ..learn.data import VALIDATION_FRACTION, split_validation
+from ..learn.data import VALIDATION_FRACTION, check_training_data, split_validation
 from ..learn.logs import log_validation
-from ..learn.loop import check_run, train
-from ..learn.members import Group, Run, member_state, train_groups
-from ..learn.training_state import SAVE_EVERY
+from ..learn.loop import fit
+from ..learn.members import Group, Job, member_state, train_groups
+from ..learn.run import Run
 from ..models import ScoreModel
 from ..planning.tidying import calibrate, count_weight
 from ..scene.outputs import atomic_write_text
@@ -33,7 +34,7 @@ from ..scene.scene import Scene, write_jsonl
 from ..viz.plot import training_figure
 from .crossval import folds_for, train_and_cross_validate
 
-__all__ = ["NothingLearned", "holdout", "train_model"]
+__all__ = ["NothingLearned", "Outputs", "Validation", "holdout", "train"]
 
 Log = Callable[[str], None]
 TIDY_SCENES = 16  # training scenes calibrated on when none are held out
@@ -72,65 +73,79 @@ def holdout(
     return split_validation(scenes, fraction, seed=seed)
 
 
-def train_model(
+@dataclass(frozen=True)
+class Validation:
+    """How :func:`train` validates: on ``heldout`` scenes when given (every scene of the data is then
+    trained on); else ``fraction`` of the scenes held out (:func:`holdout`), or, with ``folds`` of 2 or
+    more (by default with fewer than :data:`~scenescore.workflow.crossval.CROSS_VALIDATE_BELOW`
+    scenes), the model trained on every scene and validated by ``folds``-fold cross-validation
+    (``folds=1``: one hold-out whatever the data's size)."""
+
+    heldout: Sequence[Scene] | None = None
+    fraction: float = VALIDATION_FRACTION
+    folds: int | None = None
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Where :func:`train`'s results go: ``checkpoint``, the model (with ``report``, default
+    ``train_report.json`` beside it, and, for held-out scenes split here, ``<stem>.val.jsonl``);
+    ``plot``, the learning curve and a few held-out placements; ``log``, the summary lines (None:
+    nowhere); ``source``, where the scenes were read from, named in the line that says how to evaluate
+    the model again."""
+
+    checkpoint: str | os.PathLike | None = None
+    report: str | os.PathLike | None = None
+    plot: str | os.PathLike | None = None
+    log: Log | None = print
+    source: str | os.PathLike | None = None
+
+
+def train(
     scenes: Sequence[Scene],
     config: TrainConfig | None = None,
     *,
-    encoder: Encoder | None = None,
     seed: int = 0,
-    heldout: Sequence[Scene] | None = None,
-    fraction: float = VALIDATION_FRACTION,
-    out: str | os.PathLike | None = None,
-    report: str | os.PathLike | None = None,
-    plot: str | os.PathLike | None = None,
-    force: bool = False,
-    log_dir: str | os.PathLike | None = None,
+    encoder: Encoder | None = None,
+    validation: Validation | None = None,
+    outputs: Outputs | None = None,
     device: str | torch.device | None = None,
     progress: bool = True,
-    log: Log | None = print,
-    source: str | os.PathLike | None = None,
-    state: str | os.PathLike | None = None,
-    resume: bool = False,
-    save_every: int = SAVE_EVERY,
-    folds: int | None = None,
-    jobs: int | None = 1,
+    run: Run | None = None,
+    force: bool = False,
 ) -> ScoreModel:
     """Train a model on ``scenes`` as ``scenescore train`` does, and return it evaluated and calibrated.
 
-    ``heldout``: scenes to validate on (every scene of ``scenes`` is then trained on); else ``fraction``
-    of ``scenes`` is held out by ``seed`` (:func:`holdout`), or, with ``folds`` of 2 or more (by default
-    with fewer than :data:`~scenescore.workflow.crossval.CROSS_VALIDATE_BELOW` scenes), the model is
-    trained on every scene and validated by ``folds``-fold cross-validation, each fold's model trained
-    with ``config`` and ``seed`` (``folds=1``: one hold-out whatever the data's size). The held-out
-    scenes become the trust reference, are placed back object by object (the figures in
-    ``model.info.validation``) and calibrate tidying (``model.info.tidy``; without held-out scenes, the
-    first :data:`TIDY_SCENES` training ones).
-    A model whose loss never fell below chance raises :class:`NothingLearned` unless ``force``.
-    ``out``: the checkpoint to write, with ``report`` (default ``train_report.json`` beside it) and, for
-    held-out scenes split here, ``<out stem>.val.jsonl``; ``plot``: the learning curve and a few
-    held-out placements. ``log``: where the summary lines go (None: nowhere); ``source``: where
-    ``scenes`` were read from, named in the line that says how to evaluate the model again.
-    ``log_dir``, ``device``, ``progress``, ``encoder``, ``state``, ``resume``, ``save_every``, ``jobs``: as
-    for :func:`~scenescore.learn.loop.train` (with folds, ``jobs`` worker processes train the final
-    model's networks and the folds' side by side in one pool:
-    :func:`~scenescore.workflow.crossval.train_and_cross_validate`); the training state is kept until the
-    checkpoint is written.
+    ``validation`` (:class:`Validation`): held-out scenes, the fraction held out or the folds of
+    cross-validation, each fold's model trained with ``config`` and ``seed``. The held-out scenes
+    become the trust reference, are placed back object by object (the figures in
+    ``model.info.validation``) and calibrate tidying (``model.info.tidy``; without held-out scenes,
+    the first :data:`TIDY_SCENES` training ones). ``outputs`` (:class:`Outputs`): the checkpoint, the
+    report, the plot and where the summary lines go. A model whose loss never fell below chance raises
+    :class:`NothingLearned` unless ``force``. ``encoder``, ``device``, ``progress`` and ``run`` (its log,
+    resumable state and worker processes): as for :func:`~scenescore.learn.fit`; with folds, ``run.jobs``
+    worker processes train the final model's networks and the folds' side by side in one pool
+    (:func:`~scenescore.workflow.crossval.train_and_cross_validate`); the training state is kept until
+    the checkpoint is written.
     """
     cfg = config or TrainConfig()
-    say: Log = log or (lambda line: None)
-    out_path = None if out is None else Path(out)
-    check_run(scenes, save_every, state, resume)
-    k = folds_for(len(scenes), folds, fraction, heldout is not None)
-    train_s, held = (list(scenes), []) if k else holdout(scenes, fraction, heldout, seed)
+    val = validation or Validation()
+    out = outputs or Outputs()
+    run = run or Run()
+    say: Log = out.log or (lambda line: None)
+    out_path = None if out.checkpoint is None else Path(out.checkpoint)
+    check_training_data(scenes)
+    k = folds_for(len(scenes), val.folds, val.fraction, val.heldout is not None)
+    train_s, held = (list(scenes), []) if k else holdout(scenes, val.fraction, val.heldout, seed)
     # keep_state: a run killed before the checkpoint is written resumes with no more training
-    run = Run(encoder, progress, held, log_dir, device, None, state, resume, save_every, keep_state=True)
+    job = Job(encoder, progress, held, device, replace(run, keep_state=True))
     if k:  # the final model and the folds' models train side by side
         say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
-        final, folded = train_and_cross_validate(scenes, cfg, k, run, seed=seed, say=say, jobs=jobs)
+        final, folded = train_and_cross_validate(scenes, cfg, k, job, seed=seed, say=say)
         assert final is not None
         model = final
     else:
-        model = train_groups(train, [Group(train_s, run)], cfg, seed, jobs)[0]
+        model = train_groups(fit, [Group(train_s, job)], cfg, seed, run.jobs)[0]
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
     took = f"in {info.seconds:.0f} s"
@@ -147,23 +162,30 @@ def train_model(
     examples: list[Any] = []
     if held:
         ev = evaluate(model, held, train_s, seed=seed, progress=progress)
-        examples = _adopt(model, ev, record, log_dir, cfg, say)
-        if heldout is None and out_path is not None:
-            _write_heldout(held, out_path, record, seed, source, say)
+        examples = _adopt(model, ev, record, run.log_dir, cfg, say)
+        if val.heldout is None and out_path is not None:
+            _write_heldout(held, out_path, record, seed, out.source, say)
     elif k:
-        examples = _adopt(model, folded, record, log_dir, cfg, say)
-    if plot is not None:
-        training_figure(info.history or [], info.chance_loss, examples, plot)
-        say(f"wrote {plot}")
+        examples = _adopt(model, folded, record, run.log_dir, cfg, say)
+    if out.plot is not None:
+        training_figure(info.history or [], info.chance_loss, examples, out.plot)
+        say(f"wrote {out.plot}")
     _calibrate(model, held, train_s, seed, say)
     record["tidy"] = info.tidy.to_dict() if info.tidy is not None else None
-    _save(model, out_path, report, record, say)
-    if state is not None:
-        Path(state).unlink(missing_ok=True)
-        if cfg.members > 1:  # an ensemble's members each kept their own state
-            for m in range(cfg.members):
-                member_state(state, m).unlink(missing_ok=True)
+    _save(model, out_path, out.report, record, say)
+    _remove_state(run.state, cfg.members)
     return model
+
+
+def _remove_state(state: str | os.PathLike | None, members: int) -> None:
+    """The training state removed once the checkpoint is written (an ensemble's members each kept
+    their own)."""
+    if state is None:
+        return
+    Path(state).unlink(missing_ok=True)
+    if members > 1:
+        for m in range(members):
+            member_state(state, m).unlink(missing_ok=True)
 
 
 def _adopt(
