@@ -144,7 +144,7 @@ def tv_problem(scene: Scene, model: ScoreModel) -> Problem:
 def langevin_options(particles: int) -> dict[str, float]:
     """The ``langevin`` stage's options: ``particles`` per scene, a population resampled three times, the
     sampler's own 100 steps (with 60, one population of seed 2's energy at 4 clutter boxes stayed a
-    third in a wrong basin: 648 of 1000 correct, 999 with 120 steps; ``benchmarks/compose_basins.py``)."""
+    third in a wrong basin: 648 of 1000 correct, 999 with 120 steps; ``studies/compose_basins.py``)."""
     return {"particles": particles, "steps": 100, "resample": 3, "temperature": 1.0}
 
 

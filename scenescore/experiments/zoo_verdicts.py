@@ -60,7 +60,7 @@ def good(cases: Cases) -> np.ndarray:
 
 
 def read_cases(path: str | os.PathLike) -> dict[str, list[dict[str, Any]]]:
-    """The case records of a zoo run, scenario -> cases: ``benchmarks/zoo_configs.py --out``'s
+    """The case records of a zoo run, scenario -> cases: ``studies/zoo_configs.py --out``'s
     ``config-K.json`` or ``scenescore experiment zoo --out``'s ``cases.json``. ValueError naming the file
     when it cannot be read."""
     try:

@@ -110,7 +110,7 @@ class TrainConfig:
     walls: bool | None = None
     # with walls: walls as lines (see EnergyConfig.wall_lines): no edge reads where along a wall an
     # object stands. Read as boxes, the four walls add up to ramps across the room that pull objects away
-    # from their places (benchmarks/wall_pull.py); False reads them as boxes
+    # from their places (studies/wall_pull.py); False reads them as boxes
     wall_lines: bool = True
     # with walls: length scales beyond which the offsets on an edge touching a wall saturate, each axis
     # on its own (EnergyConfig.wall_range); None: linear

@@ -87,7 +87,7 @@ POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws f
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
 # interquartile ranges of the reference beyond its largest value at which a flag fires: the energy
 # share's (1: at 0.5 it flagged more good placements on the zoo and no more catastrophic ones,
-# benchmarks/trust_margins.py), an ensemble member's share (0.5: at 1 one catastrophic placement of the
+# studies/trust_margins.py), an ensemble member's share (0.5: at 1 one catastrophic placement of the
 # zoo at 12 scenes went unflagged), the energy per object of a checkpoint without shares
 SHARE_MARGIN = 1.0
 MEMBER_MARGIN = 0.5

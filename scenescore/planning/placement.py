@@ -56,7 +56,7 @@ __all__ = [
 PLACE = LangevinOptions(particles=64, candidates=2048, proposals=0.5, chain=PLACEMENT, trusted_first=True)
 #: uniform candidates per square length scale of the bounds that placement screens at the least: 1 cm parts
 #: on a 0.3 m board (3600 square length scales) need about 8000, where 2048 left the right slot unfound
-#: for 5 of zoo-pcb's 16 test scenes (``benchmarks/zoo_configs.py``'s "misses: search")
+#: for 5 of zoo-pcb's 16 test scenes (``studies/zoo_configs.py``'s "misses: search")
 CANDIDATE_DENSITY = 2.0
 MAX_COVERING = 32_768  # the most candidates that covering the bounds asks for
 #: a pair move (:func:`_in_pairs`) draws an object beside one of this many known objects nearest to it

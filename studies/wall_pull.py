@@ -1,6 +1,6 @@
 """How much of a far-off placement the walls pull: the energy at it and at the truth, with and without them.
 
-    python benchmarks/wall_pull.py [--scenario zoo-bedroom] [--seed 1] [--over 15] \\
+    python studies/wall_pull.py [--scenario zoo-bedroom] [--seed 1] [--over 15] \\
         [--configs '[{"wall_lines": false}, {}]']
 
 For every config (a JSON object of ``TrainConfig`` fields; ``{}``: the CLI's defaults) a model is trained

@@ -1,6 +1,6 @@
 """How well a trained energy orders a row: zoo-books' catastrophic failure measured without placement.
 
-    python benchmarks/books_margin.py [--seed 0] [--configs '[{}, {"reanchored": 0, "reanchor_restart": 0.0}]']
+    python studies/books_margin.py [--seed 0] [--configs '[{}, {"reanchored": 0, "reanchor_restart": 0.0}]']
 
 For every config (a JSON object of ``TrainConfig`` fields; ``{}``: the CLI's defaults) a model is trained
 on zoo-books' 48 training scenes of ``--seed``. Then, on those scenes and on the 16 test scenes, every book

@@ -1,6 +1,6 @@
 """Where Fig. 4's incorrect samples come from: the Langevin schedule, the refinement, the energy.
 
-    python benchmarks/compose_basins.py [--seeds 0,1,2] [--levels 2,3,4,5] [--per-scene 200]
+    python studies/compose_basins.py [--seeds 0,1,2] [--levels 2,3,4,5] [--per-scene 200]
         [--configs '[{}, {"steps": 120}]'] [--train '{"iterations": 2000}'] [--model-dir DIR] [--threads 1]
 
 The compose experiment's setting (``scenescore experiment compose``: its energy, cost, test scenes and

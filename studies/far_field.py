@@ -1,6 +1,6 @@
 """Far-field minima: does the learned energy have low regions far from every example?
 
-    python benchmarks/far_field.py [--scenario zoo-hall] [--seed 0] [--grow 3]
+    python studies/far_field.py [--scenario zoo-hall] [--seed 0] [--grow 3]
 
 Three models on the same data and seed: the old defaults (edge offsets linear in a fixed 0.1 m length
 scale, no edge encoder: ``RAW_EDGES``), the current ones (the data's length scale, linear offsets), and

@@ -1,13 +1,13 @@
 """The trust check's share flags judged again at other margins, from a zoo run's records and models.
 
-    python benchmarks/trust_margins.py --records DIR/config-0.json --cache DIR [--train-scenes 12] \\
+    python studies/trust_margins.py --records DIR/config-0.json --cache DIR [--train-scenes 12] \\
         [--config '{"members": 3}'] [--margins 0.5,1,2,4] [--member-margin 0.5] [--run-margins 1,0.5]
 
 The ``energy`` flag fires when a placed object's share of the energy lies beyond its category's largest
 in the reference scenes plus ``margin`` times their interquartile range (the check's margin is
 ``SHARE_MARGIN``); an ensemble's ``members`` flag when some member's share lies beyond that member's own
 such limit (at ``--member-margin``, by default the check's ``MEMBER_MARGIN``). A
-zoo run's records (``benchmarks/zoo_configs.py --out``, or ``scenescore experiment zoo --out``'s
+zoo run's records (``studies/zoo_configs.py --out``, or ``scenescore experiment zoo --out``'s
 ``cases.json``) keep each placement's pose and its flags' texts, not the shares; this script reads the
 run's models back from its model cache (it trains none: the same code, settings and cache as the run),
 computes each placed object's shares, and prints for each margin, and for the ``members`` flag needing
@@ -69,7 +69,7 @@ def main() -> None:
             bad = flagged_bad = n_good = flagged_good = 0
             for name, cases in per_case.items():
                 for c, s, b, g in zip(cases, shares[name], catastrophic(cases), good(cases)):
-                    fl = _flagged(c, s, m, need, args.member_margin)
+                    fl = flagged(c, s, m, need, args.member_margin)
                     bad, flagged_bad = bad + int(b), flagged_bad + int(b and fl)
                     n_good, flagged_good = n_good + int(g), flagged_good + int(g and fl)
             share = 100 * flagged_good / max(n_good, 1)
@@ -81,14 +81,14 @@ def main() -> None:
         f"{name} #{k}"
         for name, cases in per_case.items()
         for k, (c, s) in enumerate(zip(cases, shares[name]))
-        if _flagged(c, s, share_m, 1 if cfg.members > 1 else 0, member_m) != c["flagged"]
+        if flagged(c, s, share_m, 1 if cfg.members > 1 else 0, member_m) != c["flagged"]
     ]
     verdict = "yes" if not odd else "no, at " + ", ".join(odd)
     print(f"\nmargins {share_m:g} and {member_m:g} reproduce the run's flags: {verdict}")
-    _misses(per_case, shares, cfg)
+    misses(per_case, shares, cfg)
 
 
-def _misses(per_case: dict[str, list[dict]], shares: dict[str, list[dict]], cfg: TrainConfig) -> None:
+def misses(per_case: dict[str, list[dict]], shares: dict[str, list[dict]], cfg: TrainConfig) -> None:
     """The catastrophic placements the check leaves unflagged at its own margins, each with how much more
     the truth costs than the placement (the object's share at its truth minus at the placement: the
     scene's energy difference, the rest of the scene the same), by the mean energy and by each member."""
@@ -97,7 +97,7 @@ def _misses(per_case: dict[str, list[dict]], shares: dict[str, list[dict]], cfg:
         (name, c, s)
         for name, cases in per_case.items()
         for c, s, b in zip(cases, shares[name], catastrophic(cases))
-        if b and not _flagged(c, s, SHARE_MARGIN, need)
+        if b and not flagged(c, s, SHARE_MARGIN, need)
     ]
     print(f"\ncatastrophic placements the check leaves unflagged: {len(rows)}")
     if not rows:
@@ -147,7 +147,7 @@ def _shares(name: str, cases: list[dict], cfg: TrainConfig, args: argparse.Names
     return out
 
 
-def _flagged(case: dict, s: dict, margin: float, need: int, member_margin: float = MEMBER_MARGIN) -> bool:
+def flagged(case: dict, s: dict, margin: float, need: int, member_margin: float = MEMBER_MARGIN) -> bool:
     """Whether the check flags ``case`` with the energy flag at ``margin`` (``members`` when ``need``
     members or more put the share beyond their limit at ``member_margin``; 0: no members flag), its
     other flags as recorded."""

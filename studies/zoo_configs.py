@@ -1,6 +1,6 @@
 """Training settings compared on the zoo: the robustness table for each, worst scenario first.
 
-    python benchmarks/zoo_configs.py --scenarios zoo-bedroom,zoo-banquet --seeds 3 \\
+    python studies/zoo_configs.py --scenarios zoo-bedroom,zoo-banquet --seeds 3 \\
         --configs '[{}, {"edge_encoder": null}]' [--place '{"proposals": 0.0}'] [--jobs 2] [--out DIR] \\
         [--train-scenes 12] [--cache DIR]
 

@@ -1,6 +1,6 @@
 """How often one relation model alone gives an arrangement its checker accepts, and how sharp its edge is.
 
-    python benchmarks/relation_models.py [--seed 0] [--problems 20] [--relations left_of,facing]
+    python studies/relation_models.py [--seed 0] [--problems 20] [--relations left_of,facing]
         [--edge 100] [--restarts 3] [--set KEY=VALUE ...]
 
 The relations experiment sums one energy per relation; a problem of N objects asks for about 1.5 N of

@@ -1,7 +1,7 @@
 """How often the out-of-distribution flag fires: on good placements (it should not) and on placements
 built to be out of distribution (it should, every time).
 
-    python benchmarks/ood_flags.py [--scenario dining] [--seed 0]
+    python studies/ood_flags.py [--scenario dining] [--seed 0]
 
 A model is trained at the CLI's defaults (15% of 48 scenes held out as the trust reference). Then:
 

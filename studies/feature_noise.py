@@ -1,7 +1,7 @@
 """What feature noise in training (``TrainConfig.feature_noise``) does to placement error, on the
 dining table (Table 1's scenario) and on Unseen-Class rows (Table 2's hardest column).
 
-    python benchmarks/feature_noise.py [--noise 0,0.3,1.0] [--seed 0] [--rows 8] [--edge-encoder 32]
+    python studies/feature_noise.py [--noise 0,0.3,1.0] [--seed 0] [--rows 8] [--edge-encoder 32]
         [--size-noise 0.3] [--only dining|unseen]
 
 One seed, SceneScore only, energy placement (``SceneScorePlacer``); prints a markdown table of the

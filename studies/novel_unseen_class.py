@@ -1,7 +1,7 @@
 """Where SceneScore puts a missing piece in Unseen-Class rows (Table 2), and whether composing with
 the hinge collision cost helps: a diagnostic for ``experiment novel``.
 
-    python benchmarks/novel_unseen_class.py [--rows 8] [--seed 0]
+    python studies/novel_unseen_class.py [--rows 8] [--seed 0]
 
 Prints, per test case, the true and predicted slot (0 = next to the board) and the error, then the
 mean error of the energy alone (``placement.place``) and of energy + hinge collision + bounds through

@@ -1,6 +1,6 @@
 """How often the trust check's ``apart`` test doubts a true arrangement: no model, geometry only.
 
-    python benchmarks/apart_truths.py [--scenarios dining,zoo-cafe] [--seeds 3]
+    python studies/apart_truths.py [--scenarios dining,zoo-cafe] [--seeds 3]
 
 For each scenario and seed, the limits (:func:`scenescore.models.layout.apart_limits`) come from the
 training split (all 48 scenes, and the first 12), and every object of the scenario's ``missing``

@@ -1,0 +1,68 @@
+"""Every script under studies/ runs (``--help``), each has its row in studies/README.md, and the trust
+margins study judges the share flags as the trust check does."""
+
+from __future__ import annotations
+
+import runpy
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_benchmarks import run_help  # tests/ is on the path
+
+from scenescore.learn import TrainConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = sorted((ROOT / "studies").glob("*.py"))
+
+
+def test_there_are_studies():
+    assert len(SCRIPTS) >= 10
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=lambda p: p.name)
+def test_study_help_runs(script, monkeypatch, capsys):
+    run_help(script, monkeypatch, capsys)
+
+
+def test_every_study_is_in_the_index():
+    """studies/README.md has one row per script, and names no script that is not there."""
+    index = (ROOT / "studies" / "README.md").read_text()
+    rows = {line.split("|")[1].strip().strip("`") for line in index.splitlines() if line.startswith("| `")}
+    assert rows == {p.name for p in SCRIPTS}
+
+
+def _trust_margins() -> dict:
+    return runpy.run_path(str(ROOT / "studies" / "trust_margins.py"))
+
+
+def test_trust_margins_judges_the_share_flags_at_a_margin():
+    """studies/trust_margins.py: a share beyond the largest plus ``margin`` IQRs flags; the members
+    flag needs that many members beyond their own limits; other recorded flags always flag."""
+    flagged = _trust_margins()["flagged"]
+    ref = np.array([-1.0, 0.0, 1.0])  # its largest 1, its interquartile range 1
+    alone = {"shares": [1.5, 0.0, 0.0, 0.0], "refs": [ref] * 4}  # the mean's, then 3 members'
+    case = {"flags": ["energy: ...", "members: ..."]}  # share flags: judged again, not read
+    assert flagged(case, alone, 0.4, 1) and not flagged(case, alone, 0.5, 1)  # 1.5 > 1 + 0.4, not 1 + 0.5
+    s = {"shares": [1.0, 1.2, 0.0, 3.0], "refs": [ref] * 4}
+    assert flagged(case, s, 0.1, 2, 0.1) and not flagged(case, s, 0.1, 3, 0.1)  # members 1 and 3 > 1.1
+    assert not flagged(case, s, 0.1, 0, 0.1) and not flagged(case, s, 0.1, 1, 2.5)  # none; 3.0 < 3.5
+    assert flagged({"flags": ["far: ..."]}, s, 9.0, 0)  # another flag, as recorded
+
+
+def test_trust_margins_lists_the_catastrophic_placements_left_unflagged(capsys):
+    """studies/trust_margins.py: a catastrophic placement no flag catches is listed with how much more
+    its truth costs, by the mean energy and each member; a flagged one and a good one are not."""
+    misses = _trust_margins()["misses"]
+    ref = np.array([-1.0, 0.0, 1.0])
+    cases = [
+        {"seed": 0, "object": "book_1", "t_cm": 40.0, "oracle_t_cm": 0.2, "flags": []},
+        {"seed": 1, "object": "book_2", "t_cm": 35.0, "oracle_t_cm": 0.2, "flags": ["rival: ..."]},
+        {"seed": 2, "object": "book_3", "t_cm": 0.1, "oracle_t_cm": 0.2, "flags": []},
+    ]
+    quiet = {"shares": [0.0] * 3, "refs": [ref] * 3, "truth_minus_answer": [0.9, 1.2, 0.6]}
+    misses({"zoo-books": cases}, {"zoo-books": [quiet, quiet, quiet]}, TrainConfig(members=2))
+    out = capsys.readouterr().out
+    assert "leaves unflagged: 1" in out
+    assert "| zoo-books | 0 | book_1 | 40.0 | 0.90 | 1.20, 0.60 |" in out
+    assert "book_2" not in out and "book_3" not in out
