@@ -37,6 +37,7 @@ from ..scene.scene import Scene, SceneError
 from ..scene.textfiles import MAX_DEPTH, check_yaml_depth, check_yaml_tree, read_text
 from ..solvers import available, option_names
 from ..solvers import get as get_solver
+from ..solvers.registry import run_setting_note
 from .problem import Problem, ProblemError
 
 __all__ = ["ProblemSpec", "load_problem", "LoadedProblem"]
@@ -234,7 +235,7 @@ def _check_solver_names(spec: ProblemSpec, where: _Where) -> None:
                 if key not in valid:
                     raise ProblemError(
                         f"{where(('options', name, key))}: unknown option {key!r} for solver {name!r}"
-                        f"{_near(str(key), valid)} (valid: {', '.join(valid)})"
+                        f"{_near(str(key), valid)}{run_setting_note(str(key))} (valid: {', '.join(valid)})"
                     )
         try:
             get_solver(name, **opts)

@@ -20,7 +20,7 @@ from .langevin import LangevinSolver
 from .result import Result
 from .sqp import OSQPSolver
 
-__all__ = ["register", "available", "get", "option_names", "solve"]
+__all__ = ["register", "available", "get", "option_names", "solve", "RUN_SETTINGS", "run_setting_note"]
 
 # name -> factory(**options) -> Solver; a solver class with an ``options_cls`` is its own factory
 _REGISTRY: dict[str, Callable[..., Solver]] = {
@@ -59,6 +59,17 @@ def option_names(name: str) -> list[str] | None:
     return sorted(f.name for f in fields(cls))
 
 
+#: settings of the whole run that users reach for as a solver's option, and where they are set instead
+RUN_SETTINGS = {"threads": "the run's thread budget: --threads on the command line, ss.thread_budget in Python"}
+
+
+def run_setting_note(option: str) -> str:
+    """For an unknown option that is a setting of the whole run (:data:`RUN_SETTINGS`), where it is set;
+    else nothing."""
+    where = RUN_SETTINGS.get(option)
+    return f"; {option} is not a solver's option but {where}" if where else ""
+
+
 def get(name: str, **options: Any) -> Solver:
     """A solver by name with its options, or a chain ``"a>b"`` with options per stage name
     (``get("langevin>osqp", langevin={"steps": 50})``); an unknown name lists the valid ones."""
@@ -76,6 +87,7 @@ def get(name: str, **options: Any) -> Solver:
     if unknown and valid is not None:
         near = nearest_name(str(unknown[0]), valid)
         hint = f"; did you mean {near!r}?" if near else ""
+        hint += run_setting_note(str(unknown[0]))
         raise ProblemError(
             f"solver {name!r}: unknown option {unknown[0]!r}{hint} (valid: {', '.join(valid)})"
         )

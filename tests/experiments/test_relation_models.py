@@ -51,7 +51,7 @@ def test_edge_counts_the_moves_the_checker_rejects(tiny_left_of):
 def _edges(monkeypatch, shares):
     """Make :func:`edge` report ``shares`` in turn, and record the seeds trained."""
     seeds: list[int] = []
-    real_train = RM.train
+    real_train = RM.fit
 
     def train(scenes, cfg, seed, **kw):
         assert len(scenes) == 8  # the examples asked for; the validation examples follow them
@@ -59,7 +59,7 @@ def _edges(monkeypatch, shares):
         return real_train(scenes, cfg, seed=seed, **kw)
 
     it = iter(shares)
-    monkeypatch.setattr(RM, "train", train)
+    monkeypatch.setattr(RM, "fit", train)
     monkeypatch.setattr(RM, "edge", lambda *a: [RM.Edge(RM.EDGE_MOVE, 10, next(it), 0.1)])
     return seeds
 

@@ -114,13 +114,13 @@ def test_zoo_small_data_variant_trains_on_fewer_scenes_and_places_the_same_cases
     import scenescore.experiments.zoo as zoo_module
 
     seen: list[int] = []
-    real = zoo_module.train
+    real = zoo_module.fit
 
     def counting(scenes, *args, **kwargs):
         seen.append(len(scenes))
         return real(scenes, *args, **kwargs)
 
-    monkeypatch.setattr(zoo_module, "train", counting)
+    monkeypatch.setattr(zoo_module, "fit", counting)
     kw = dict(seeds=1, scenarios=["zoo-hall"], progress=False, log=lambda s: None, config=TINY)
     full, small = zoo.run(**kw), zoo.run(**kw, train_scenes=12)
     assert seen == [48, 12]

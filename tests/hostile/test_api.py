@@ -49,7 +49,6 @@ OPTIONS = [
     ),
     ("LangevinOptions particles 1e9", lambda: _lo(particles=10**9), ConfigError, ("particles",)),
     ("LangevinOptions projection", lambda: _lo(projection="exact"), ConfigError, ("projection",)),
-    ("LangevinOptions threads 0", lambda: _lo(threads=0), ConfigError, ("threads",)),
     ("SQPOptions max_iter -1", lambda: _so(max_iter=-1), ConfigError, ("osqp", "max_iter")),
     ("SQPOptions trust_init -1", lambda: _so(trust_init=-1.0), ConfigError, ("trust_init",)),
     (

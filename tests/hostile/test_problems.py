@@ -213,7 +213,7 @@ SCHEMA = [
         BASE + "options:\n  langevin: {projection: exact}\n",
         ("options.langevin.projection",),
     ),
-    ("threads 0", BASE + "options:\n  langevin: {threads: 0}\n", ("options.langevin.threads",)),
+    ("threads, not an option", BASE + "options:\n  langevin: {threads: 2}\n", ("options.langevin.threads", "--threads")),
     (
         "candidates negative",
         BASE + "options:\n  langevin: {candidates: -1}\n",
