@@ -60,7 +60,9 @@ def option_names(name: str) -> list[str] | None:
 
 
 #: settings of the whole run that users reach for as a solver's option, and where they are set instead
-RUN_SETTINGS = {"threads": "the run's thread budget: --threads on the command line, ss.thread_budget in Python"}
+RUN_SETTINGS = {
+    "threads": "the run's thread budget: --threads on the command line, ss.thread_budget in Python"
+}
 
 
 def run_setting_note(option: str) -> str:

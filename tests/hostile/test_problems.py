@@ -213,7 +213,11 @@ SCHEMA = [
         BASE + "options:\n  langevin: {projection: exact}\n",
         ("options.langevin.projection",),
     ),
-    ("threads, not an option", BASE + "options:\n  langevin: {threads: 2}\n", ("options.langevin.threads", "--threads")),
+    (
+        "threads, not an option",
+        BASE + "options:\n  langevin: {threads: 2}\n",
+        ("options.langevin.threads", "--threads"),
+    ),
     (
         "candidates negative",
         BASE + "options:\n  langevin: {candidates: -1}\n",
