@@ -6,9 +6,8 @@ The television scene of Fig. 4 (``scenescore experiment compose``): the televisi
 moving, 0 to 5 fixed clutter boxes (N = 3 to 8 objects; 22 boxes: N = 25), every pair with a moving
 object. Two populations of ``--samples`` pose sets: ``start``, the moving objects uniform in the room
 (where a Langevin chain starts), and ``settled``, the scenario's own arrangements of them (where it
-ends). ``old``: every pair through the plain kernel (the computation before the fast path); ``new``:
-pairs screened by their bounding circles, the split-coordinate kernel, the gradient taken only on the
-overlapping pairs. Both are timed in one run, alternately; each figure is the median of ``--repeat``.
+ends). ``old``: every pair through the kernel; ``new``: pairs screened by their bounding circles, the
+gradient taken only on the overlapping pairs. Both are timed in one run, alternately; each figure is the median of ``--repeat``.
 ``same``: the new values and gradients equal the old bit for bit. ``near``: the share of pairs whose
 bounding circles touch (computed exactly), ``overlap``: the share that overlap (carry a gradient).
 
@@ -121,7 +120,7 @@ def main() -> None:
         new = problem.cost["collision"]
         assert isinstance(new, HingeCollision)
         old = copy.copy(new)
-        old._path = "reference"
+        old._path = "full"
         for name, x in populations(scenario, problem, args.samples, args.seed).items():
             same = torch.equal(forward(new, x), forward(old, x))
             same &= all(torch.equal(a, b) for a, b in zip(forward_backward(new, x), forward_backward(old, x)))

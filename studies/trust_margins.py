@@ -28,9 +28,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import torch
+from zoo_configs import read_cases  # a sibling study: studies/ is the script's own folder
 
 from scenescore.experiments.zoo import zoo_cases
-from scenescore.experiments.zoo_verdicts import catastrophic, good, read_cases
+from scenescore.experiments.zoo_verdicts import catastrophic, good
 from scenescore.learn import Run, TrainConfig, fit, split_validation
 from scenescore.learn.cache import cached_path
 from scenescore.models.ensemble import member_seed

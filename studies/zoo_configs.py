@@ -28,13 +28,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
+from collections import Counter
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from scenescore.experiments.zoo import run
-from scenescore.experiments.zoo_verdicts import catastrophic, flag_kinds, read_cases, trust_line
+from scenescore.experiments.zoo_verdicts import Cases, catastrophic, good, trust_line
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.planning.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
@@ -127,6 +131,32 @@ def main() -> None:
     print()
     for line in summary:
         print(line)
+
+
+def read_cases(path: str | os.PathLike) -> dict[str, list[dict[str, Any]]]:
+    """The case records of a zoo run, scenario -> cases: ``studies/zoo_configs.py --out``'s
+    ``config-K.json`` or ``scenescore experiment zoo --out``'s ``cases.json``. ValueError naming the file
+    when it cannot be read."""
+    try:
+        records = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{path}: cannot read the case records: {e}") from None
+    return records["cases"] if "config" in records else records  # else experiment zoo's
+
+
+def flag_kinds(per_case: Mapping[str, Cases]) -> str:
+    """How many catastrophic and how many good placements each kind of flag (``energy``, ``members``,
+    ``rival``, ...) is among the flags of, pooled over the scenarios."""
+    on: dict[str, Counter[str]] = {"catastrophic": Counter(), "good": Counter()}
+    for cases in per_case.values():
+        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
+            kinds = {f.split(":")[0] for f in c["flags"]}
+            on["catastrophic"].update(kinds if b else ())
+            on["good"].update(kinds if g else ())
+    return "; ".join(
+        f"flags on {k} placements: " + (", ".join(f"{f} {n}" for f, n in sorted(v.items())) or "none")
+        for k, v in on.items()
+    )
 
 
 def _bad_flagged(cases: list[dict]) -> str:

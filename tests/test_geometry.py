@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 from shapely.geometry import MultiPoint, Point
+from torch import Tensor
 
 from scenescore.geometry.exact import (
     collides,
@@ -128,10 +129,57 @@ def test_disks_are_exact_circles():
         assert sd == pytest.approx(d - 0.15, abs=1e-9)
 
 
+# the plain form of the signed distance, which the library's split-coordinate kernel must equal
+_BIG = 1e9
+
+
+def _edge_normals(w: Tensor, valid: Tensor) -> Tensor:
+    """Unit outward normals of the edges ``v_k -> v_{k+1}`` of ``w (B, P, K, 2)``; invalid edges give 0."""
+    e = torch.roll(w, -1, dims=-2) - w
+    n = torch.stack([e[..., 1], -e[..., 0]], dim=-1)
+    norm2 = (n * n).sum(-1, keepdim=True)
+    safe = torch.where(valid[None, ..., None], norm2, torch.ones_like(norm2))
+    return torch.where(valid[None, ..., None], n / torch.sqrt(safe), torch.zeros_like(n))
+
+
+def _vertex_segment_d2(p: Tensor, q: Tensor) -> Tensor:
+    """Smallest squared distance from the vertices of ``p (B, P, K, 2)`` to the edges of ``q`` -> ``(B, P)``."""
+    s = q[..., None, :, :]  # (B, P, 1, K, 2) segment starts
+    e = torch.roll(q, -1, dims=-2)[..., None, :, :] - s  # segment vectors
+    d = p[..., :, None, :] - s  # (B, P, K, K, 2)
+    ee = (e * e).sum(-1)
+    t = ((d * e).sum(-1) / torch.where(ee > 0, ee, torch.ones_like(ee))).clamp(0.0, 1.0)
+    r = d - t[..., None] * e
+    return (r * r).sum(-1).flatten(-2).min(-1).values
+
+
+def signed_distance_reference(
+    pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: Tensor, pj: Tensor
+) -> Tensor:
+    """``signed_distance_placed`` written plainly, points as ``(..., 2)`` vectors: the definition the
+    fast kernel is checked against (values and gradients)."""
+    a, b = fp.world(pose_a, pi), fp.world(pose_b, pj)  # (B, P, K, 2)
+    va, vb = fp.edge_valid[pi], fp.edge_valid[pj]  # (P, K)
+    axes = torch.cat([_edge_normals(a, va), _edge_normals(b, vb)], dim=-2)  # (B, P, 2K, 2)
+    valid = torch.cat([va, vb], dim=-1)  # (P, 2K)
+    pa = (axes[..., :, None, :] * a[..., None, :, :]).sum(-1)  # (B, P, 2K, K)
+    pb = (axes[..., :, None, :] * b[..., None, :, :]).sum(-1)
+    overlap = torch.minimum(pa.max(-1).values - pb.min(-1).values, pb.max(-1).values - pa.min(-1).values)
+    overlap = torch.where(valid[None], overlap, torch.full_like(overlap, _BIG))
+    depth = overlap.min(-1).values  # (B, P): penetration depth of the cores if positive
+    has_axis = valid.any(-1)[None]  # two point cores have no axis: use the distance
+    d2 = torch.minimum(_vertex_segment_d2(a, b), _vertex_segment_d2(b, a))
+    dist = torch.sqrt(d2 + 1e-20)
+    inside = has_axis & (depth > 0)
+    core = torch.where(inside, -torch.where(inside, depth, torch.zeros_like(depth)), dist)
+    r = fp.radius.to(pose_a.dtype)
+    return core - r[pi] - r[pj]
+
+
 def test_split_kernel_equals_the_plain_reference():
     """The split-coordinate kernel does the reference's arithmetic operation for operation: the same
     values bit for bit; gradients to rounding (backward sums run in another order on many-vertex cores)."""
-    from scenescore.geometry.footprints import signed_distance_placed, signed_distance_reference
+    from scenescore.geometry.footprints import signed_distance_placed
 
     pairs = list(_pairs(400, seed=5))
     objects, poses = [], []

@@ -4,6 +4,7 @@ margins study judges the share flags as the trust check does."""
 from __future__ import annotations
 
 import runpy
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -32,8 +33,18 @@ def test_every_study_is_in_the_index():
     assert rows == {p.name for p in SCRIPTS}
 
 
+def _study(name: str) -> dict:
+    """The names ``studies/NAME`` defines, run as ``python studies/NAME`` would (its folder on the path,
+    for the sibling study it imports)."""
+    sys.path.insert(0, str(ROOT / "studies"))
+    try:
+        return runpy.run_path(str(ROOT / "studies" / name))
+    finally:
+        sys.path.remove(str(ROOT / "studies"))
+
+
 def _trust_margins() -> dict:
-    return runpy.run_path(str(ROOT / "studies" / "trust_margins.py"))
+    return _study("trust_margins.py")
 
 
 def test_trust_margins_judges_the_share_flags_at_a_margin():
@@ -66,3 +77,20 @@ def test_trust_margins_lists_the_catastrophic_placements_left_unflagged(capsys):
     assert "leaves unflagged: 1" in out
     assert "| zoo-books | 0 | book_1 | 40.0 | 0.90 | 1.20, 0.60 |" in out
     assert "book_2" not in out and "book_3" not in out
+
+
+def test_zoo_configs_counts_each_kind_of_flag_on_catastrophic_and_good_placements():
+    """studies/zoo_configs.py's ``flag_kinds``: the kinds of flag among each placement's flags, pooled
+    over the scenarios, for the catastrophic and the good ones."""
+    flag_kinds = _study("zoo_configs.py")["flag_kinds"]
+
+    def case(t: float, flags: list[str]) -> dict:
+        return {"t_cm": t, "oracle_t_cm": 1.0, "flagged": bool(flags), "flags": flags}
+
+    per_case = {
+        "a": [case(40.0, ["rival: another particle ..."]), case(1.0, []), case(1.0, ["energy: ..."])],
+        "b": [case(50.0, []), case(0.5, []), case(0.8, [])],
+    }
+    assert flag_kinds(per_case) == (
+        "flags on catastrophic placements: rival 1; flags on good placements: energy 1"
+    )

@@ -13,7 +13,7 @@ from pydantic import Field
 from torch import Tensor
 
 from ..geometry.exact import overlap_depth_exceeds, shapely_core
-from ..geometry.footprints import signed_distance_placed, signed_distance_reference
+from ..geometry.footprints import signed_distance_placed
 from ..runtime import chunk_rows, return_freed_memory
 from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
 from .spec import CostSpec, SpecContext, register_cost_type
@@ -47,9 +47,9 @@ class HingeCollision(ConstraintCost):
     row exactly.
     """
 
-    # how the hinge is computed (tests and benchmarks compare them): "fast" (the screened pairs),
-    # "full" (every pair, the same kernel) or "reference" (every pair, the plain kernel)
-    _path: Literal["fast", "full", "reference"] = "fast"
+    # how the hinge is computed (tests and benchmarks compare them): "fast" (the screened pairs) or
+    # "full" (every pair, the same kernel)
+    _path: Literal["fast", "full"] = "fast"
 
     def __init__(
         self,
@@ -92,8 +92,7 @@ class HingeCollision(ConstraintCost):
         self._reach2_np = (self._reach * self._reach).cpu().numpy()
 
     def _kernel(self, pose_a: Tensor, pose_b: Tensor, pi: Tensor, pj: Tensor) -> Tensor:
-        fn = signed_distance_reference if self._path == "reference" else signed_distance_placed
-        return fn(pose_a, pose_b, self.binding.footprints, pi, pj)
+        return signed_distance_placed(pose_a, pose_b, self.binding.footprints, pi, pj)
 
     def _circles(self, poses: Tensor) -> tuple[Tensor, Tensor]:
         """Squared centre distance ``(B, P)`` and the reach ``(P,)`` beyond which a pair's row is certainly

@@ -3,18 +3,13 @@
 A placement is catastrophic when it is more than :data:`CATASTROPHIC_CM` and more than
 :data:`CATASTROPHIC_ORACLE` oracle means off, good within :data:`GOOD_ORACLE` oracle means (the oracle's
 mean error over the scenario's placements). The trust check should flag every catastrophic placement and
-few good ones: :func:`trust_line` counts both, pooled over the scenarios, and :func:`flag_kinds` which
-kinds of flag fired on each. Each case record is a dict with ``t_cm``, ``oracle_t_cm``, ``flagged`` and
+few good ones: :func:`trust_line` counts both, pooled over the scenarios. Each case record is a dict with ``t_cm``, ``oracle_t_cm``, ``flagged`` and
 ``flags``, made by :func:`case_records` (:func:`scenescore.experiments.zoo.run`).
 """
 
 from __future__ import annotations
 
-import json
-import os
-from collections import Counter
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -31,8 +26,6 @@ __all__ = [
     "catastrophic",
     "good",
     "trust_line",
-    "flag_kinds",
-    "read_cases",
     "case_records",
 ]
 
@@ -59,17 +52,6 @@ def good(cases: Cases) -> np.ndarray:
     return t <= GOOD_ORACLE * max(om, 1e-9)
 
 
-def read_cases(path: str | os.PathLike) -> dict[str, list[dict[str, Any]]]:
-    """The case records of a zoo run, scenario -> cases: ``studies/zoo_configs.py --out``'s
-    ``config-K.json`` or ``scenescore experiment zoo --out``'s ``cases.json``. ValueError naming the file
-    when it cannot be read."""
-    try:
-        records = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise ValueError(f"{path}: cannot read the case records: {e}") from None
-    return records["cases"] if "config" in records else records  # else experiment zoo's
-
-
 def trust_line(per_case: Mapping[str, Cases]) -> str:
     """The trust check pooled over every scenario's case records: the catastrophic placements flagged,
     those the ``rival`` flag is among the flags of, and the good ones flagged."""
@@ -85,21 +67,6 @@ def trust_line(per_case: Mapping[str, Cases]) -> str:
     return (
         f"flagged: {flagged} of {bad} catastrophic ({rival} by rival), "
         f"{good_flagged} of {n_good} good ({100 * share:.1f}%)"
-    )
-
-
-def flag_kinds(per_case: Mapping[str, Cases]) -> str:
-    """How many catastrophic and how many good placements each kind of flag (``energy``, ``members``,
-    ``rival``, ...) is among the flags of, pooled over the scenarios."""
-    on: dict[str, Counter[str]] = {"catastrophic": Counter(), "good": Counter()}
-    for cases in per_case.values():
-        for c, b, g in zip(cases, catastrophic(cases), good(cases)):
-            kinds = {f.split(":")[0] for f in c["flags"]}
-            on["catastrophic"].update(kinds if b else ())
-            on["good"].update(kinds if g else ())
-    return "; ".join(
-        f"flags on {k} placements: " + (", ".join(f"{f} {n}" for f, n in sorted(v.items())) or "none")
-        for k, v in on.items()
     )
 
 

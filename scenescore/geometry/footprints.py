@@ -29,7 +29,6 @@ __all__ = [
     "footprint_core",
     "signed_distance",
     "signed_distance_placed",
-    "signed_distance_reference",
     "support_extent",
 ]
 
@@ -142,9 +141,9 @@ def signed_distance(poses: Tensor, fp: Footprints, pi: Tensor, pj: Tensor) -> Te
 def signed_distance_placed(pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: Tensor, pj: Tensor) -> Tensor:
     """As :func:`signed_distance`, with each pair's two poses given: ``pose_a, pose_b (B, P, 3)`` -> ``(B, P)``.
 
-    Each row depends only on its own two poses, so one backward pass gives every row's Jacobian. The
-    same arithmetic, operation for operation, as :func:`signed_distance_reference` (so the same bits),
-    with the x and y coordinates kept apart: no products reduced over a dimension of two.
+    Each row depends only on its own two poses, so one backward pass gives every row's Jacobian. The x
+    and y coordinates are kept apart: no products reduced over a dimension of two (``tests/test_geometry.py``
+    holds the plain form it equals, operation for operation).
     """
     ax, ay = fp.world_xy(pose_a, pi)  # (B, P, K)
     bx, by = fp.world_xy(pose_b, pj)
@@ -161,52 +160,6 @@ def signed_distance_placed(pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: T
     d2 = torch.minimum(
         _vertex_segment_d2_xy(ax, ay, bx, by, ebx, eby), _vertex_segment_d2_xy(bx, by, ax, ay, eax, eay)
     )
-    dist = torch.sqrt(d2 + 1e-20)
-    inside = has_axis & (depth > 0)
-    core = torch.where(inside, -torch.where(inside, depth, torch.zeros_like(depth)), dist)
-    r = fp.radius.to(pose_a.dtype)
-    return core - r[pi] - r[pj]
-
-
-# -- the reference: the same signed distance in its plain form (tests and benchmarks compare against it)
-
-
-def _edge_normals(w: Tensor, valid: Tensor) -> Tensor:
-    """Unit outward normals of the edges ``v_k -> v_{k+1}`` of ``w (B, P, K, 2)``; invalid edges give 0."""
-    e = torch.roll(w, -1, dims=-2) - w
-    n = torch.stack([e[..., 1], -e[..., 0]], dim=-1)
-    norm2 = (n * n).sum(-1, keepdim=True)
-    safe = torch.where(valid[None, ..., None], norm2, torch.ones_like(norm2))
-    return torch.where(valid[None, ..., None], n / torch.sqrt(safe), torch.zeros_like(n))
-
-
-def _vertex_segment_d2(p: Tensor, q: Tensor) -> Tensor:
-    """Smallest squared distance from the vertices of ``p (B, P, K, 2)`` to the edges of ``q`` -> ``(B, P)``."""
-    s = q[..., None, :, :]  # (B, P, 1, K, 2) segment starts
-    e = torch.roll(q, -1, dims=-2)[..., None, :, :] - s  # segment vectors
-    d = p[..., :, None, :] - s  # (B, P, K, K, 2)
-    ee = (e * e).sum(-1)
-    t = ((d * e).sum(-1) / torch.where(ee > 0, ee, torch.ones_like(ee))).clamp(0.0, 1.0)
-    r = d - t[..., None] * e
-    return (r * r).sum(-1).flatten(-2).min(-1).values
-
-
-def signed_distance_reference(
-    pose_a: Tensor, pose_b: Tensor, fp: Footprints, pi: Tensor, pj: Tensor
-) -> Tensor:
-    """:func:`signed_distance_placed` written plainly, points as ``(..., 2)`` vectors: the definition
-    the fast kernel is checked against (values and gradients), and the old path benchmarks time."""
-    a, b = fp.world(pose_a, pi), fp.world(pose_b, pj)  # (B, P, K, 2)
-    va, vb = fp.edge_valid[pi], fp.edge_valid[pj]  # (P, K)
-    axes = torch.cat([_edge_normals(a, va), _edge_normals(b, vb)], dim=-2)  # (B, P, 2K, 2)
-    valid = torch.cat([va, vb], dim=-1)  # (P, 2K)
-    pa = (axes[..., :, None, :] * a[..., None, :, :]).sum(-1)  # (B, P, 2K, K)
-    pb = (axes[..., :, None, :] * b[..., None, :, :]).sum(-1)
-    overlap = torch.minimum(pa.max(-1).values - pb.min(-1).values, pb.max(-1).values - pa.min(-1).values)
-    overlap = torch.where(valid[None], overlap, torch.full_like(overlap, _BIG))
-    depth = overlap.min(-1).values  # (B, P): penetration depth of the cores if positive
-    has_axis = valid.any(-1)[None]  # two point cores have no axis: use the distance
-    d2 = torch.minimum(_vertex_segment_d2(a, b), _vertex_segment_d2(b, a))
     dist = torch.sqrt(d2 + 1e-20)
     inside = has_axis & (depth > 0)
     core = torch.where(inside, -torch.where(inside, depth, torch.zeros_like(depth)), dist)

@@ -3,7 +3,7 @@ pooled line, on hand-made case records."""
 
 from __future__ import annotations
 
-from scenescore.experiments.zoo_verdicts import catastrophic, flag_kinds, good, trust_line
+from scenescore.experiments.zoo_verdicts import catastrophic, good, trust_line
 
 
 def _case(t: float, flags: list[str], oracle: float = 1.0) -> dict:
@@ -24,6 +24,3 @@ def test_the_trust_line_pools_the_scenarios_and_counts_the_rival_flag():
         "b": [_case(50.0, []), _case(0.5, []), _case(0.8, [])],
     }
     assert trust_line(per_case) == "flagged: 1 of 2 catastrophic (1 by rival), 1 of 4 good (25.0%)"
-    assert flag_kinds(per_case) == (
-        "flags on catastrophic placements: rival 1; flags on good placements: energy 1"
-    )
