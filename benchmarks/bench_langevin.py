@@ -21,7 +21,7 @@ from scenescore.learn import TrainConfig, fit
 from scenescore.models import ScoreModel
 from scenescore.runtime.devices import generator, resolve_device
 from scenescore.scenarios import DiningScenario
-from scenescore.solvers.kernel import LangevinConfig, langevin
+from scenescore.solvers.kernel import LangevinConfig, Limits, langevin
 
 
 def throughput(model: ScoreModel, n: int, b: int, steps: int = 20) -> float:
@@ -34,10 +34,11 @@ def throughput(model: ScoreModel, n: int, b: int, steps: int = 20) -> float:
     lo, hi = torch.tensor(scene.bounds[0], device=dev), torch.tensor(scene.bounds[1], device=dev)
     x0 = uniform_init((b, n), lo, hi, gen)
     movable = torch.ones(n, dtype=torch.bool, device=dev)
-    langevin(fn, x0, movable, lo, hi, LangevinConfig(steps=2), gen)  # warm-up
+    limits = Limits(movable, lo, hi)
+    langevin(fn, x0, limits, LangevinConfig(steps=2), gen)  # warm-up
     synchronize(dev)
     t = time.perf_counter()
-    langevin(fn, x0, movable, lo, hi, LangevinConfig(steps=steps), gen)
+    langevin(fn, x0, limits, LangevinConfig(steps=steps), gen)
     synchronize(dev)
     return b * steps / (time.perf_counter() - t)
 

@@ -15,7 +15,15 @@ from scenescore.problem.files import load_problem
 from scenescore.problem.problem import Problem, ProblemError
 from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers import solve
-from scenescore.solvers.kernel import PLACEMENT, LangevinConfig, langevin, resample, screen, sweep_headings
+from scenescore.solvers.kernel import (
+    PLACEMENT,
+    LangevinConfig,
+    Limits,
+    langevin,
+    resample,
+    screen,
+    sweep_headings,
+)
 
 pytestmark = pytest.mark.float_order
 
@@ -67,8 +75,8 @@ def test_resampled_population_ends_in_the_deep_basin():
     with pytest.raises(ValueError, match="age=None"):
         cfg = LangevinConfig(steps=4, resample=1)
         x = torch.zeros(2, 1, 3)
-        langevin(lambda x: x.sum((1, 2)), x, torch.ones(1, dtype=torch.bool), -torch.ones(2), torch.ones(2),
-                 cfg, age=torch.zeros(2))  # fmt: skip
+        limits = Limits(torch.ones(1, dtype=torch.bool), -torch.ones(2), torch.ones(2))
+        langevin(lambda x: x.sum((1, 2)), x, limits, cfg, age=torch.zeros(2))
 
 
 def _face(poses: torch.Tensor) -> torch.Tensor:

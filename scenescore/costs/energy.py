@@ -13,9 +13,10 @@ from torch import Tensor
 from ..geometry.poses import compose_poses
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
+from ..models.flags import assess
 from ..models.model import with_walls
 from ..models.rivals import rivals
-from ..models.trust import Assessment, assess, outside_data
+from ..models.trust import Assessment, outside_data
 from ..runtime import draw
 from ..scene.scene import Scene
 from ..scene.units import length_unit

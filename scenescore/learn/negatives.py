@@ -18,7 +18,7 @@ import torch
 from ..geometry.poses import compose_poses, relative_poses, uniform_init
 from ..models import SceneTensors
 from ..runtime.devices import draw
-from ..solvers.kernel import LangevinConfig, langevin
+from ..solvers.kernel import LangevinConfig, Limits, langevin
 from .config import TrainConfig
 
 __all__ = ["ChainBuffer", "perturbed_negatives", "reanchored_negatives", "log_uniform"]
@@ -152,7 +152,8 @@ class ChainBuffer:
         init = self.poses[rows].reshape(b * k, *self.poses.shape[2:])
         movable = self.movable[rows].reshape(b * k, -1)
         age = self.age[rows].reshape(-1)
-        neg, _ = langevin(energy, init, movable, rep.lo, rep.hi, schedule, self.gen, age=age, run_steps=steps)
+        limits = Limits(movable, rep.lo, rep.hi)
+        neg, _ = langevin(energy, init, limits, schedule, self.gen, age=age, run_steps=steps)
         self.poses[rows] = neg.reshape(b, k, *neg.shape[1:])
         self.age[rows] += steps
         return neg

@@ -45,7 +45,6 @@ import numpy as np
 import torch
 
 from ..scene.scene import Scene
-from ..scene.units import length_unit
 from .layout import (
     BOUND_TOL,
     OVERLAP_TOL,
@@ -56,7 +55,6 @@ from .layout import (
     nearest_distances,
     overlapping_categories,
     relations,
-    touching_bound,
 )
 from .shares import energy_per_object, energy_shares, member_shares, shares_by_energy
 
@@ -64,7 +62,7 @@ __all__ = [
     "TrustReference",
     "Assessment",
     "reference",
-    "assess",
+    "members_doubt",
     "NEAR_BOUND",
     "outside_data",
     "apart_distances",
@@ -251,7 +249,7 @@ class TrustReference:
         return ref
 
 
-def _members_doubt(ref: TrustReference, category: str, shares: np.ndarray) -> tuple[float, int]:
+def members_doubt(ref: TrustReference, category: str, shares: np.ndarray) -> tuple[float, int]:
     """An object's shares by each member of an ensemble ``(members,)`` against each member's reference:
     the lowest member's confidence, and how many members put it beyond their reference's shares."""
     refs = [ref.category_shares(category, m) for m in range(len(shares))]
@@ -362,88 +360,3 @@ def reference(
         member_shares=kept[1:] if size > 1 else None,
         apart=apart_limits(scenes, length),
     )
-
-
-def assess(
-    ref: TrustReference, model: Any, scene: Scene, names: Sequence[str], feats: torch.Tensor | None = None
-) -> dict[str, Assessment]:
-    """Confidence and flags for the objects ``names`` of ``scene`` (every pose known).
-
-    ``feats``: the scene's encoded features ``(N, F)`` when the caller has them (saves encoding again).
-    """
-    per_member = None  # (members, K): each member's shares, an ensemble's
-    if ref.shares:
-        judged = bool(ref.member_shares) and getattr(model, "members", 1) == len(ref.member_shares or [])
-        rows = shares_by_energy(model, scene, names, members=judged)
-        share = dict(zip(names, rows[0].tolist()))
-        per_member = rows[1:] if judged else None
-    else:  # a checkpoint from before the shares were stored: the scene's energy per object
-        e = energy_per_object(model, [scene])[0]
-        ref_e = np.asarray(ref.energies)
-    p = scene.poses()
-    nn = nearest_distances(p) / ref.length_scale
-    if feats is None:
-        with torch.no_grad():
-            feats = model.tensors([scene]).feats[0]
-    known = np.asarray(ref.features)
-    caveats = getattr(getattr(model, "info", None), "caveats", None)  # the model's ``info.caveats``
-    unit = length_unit(scene)
-    out = {}
-    for k, name in enumerate(names):
-        i = scene.index(name)
-        o = scene.objects[i]
-        flags = []
-        if per_member is not None:
-            confidence, doubt = _members_doubt(ref, o.category, per_member[:, k])
-        if ref.shares:
-            mine = ref.category_shares(o.category)
-            mean_confidence = float(np.mean(mine >= share[name]))
-            limit = ref.share_limit(o.category)
-            whose = f"any {o.category}'s" if o.category in ref.shares else "any object's"
-            if share[name] > limit:
-                flags.append(
-                    f"energy: its share of the scene's energy {share[name]:.3g} lies beyond {whose} in the "
-                    f"data ({limit:.3g})"
-                )
-            if per_member is None:
-                confidence = mean_confidence
-            else:
-                confidence = min(confidence, mean_confidence)
-                if doubt:
-                    flags.append(
-                        f"members: {doubt} of {len(per_member)} members put its share of their energy "
-                        f"beyond {whose} in the data (the ensemble disagrees)"
-                    )
-        else:
-            confidence = float(np.mean(ref_e >= e)) if ref_e.size else 1.0
-            if ref_e.size and e > ref.energy_limit:
-                flags.append(
-                    f"energy: the scene's energy {e:.3g} per object lies beyond every example's "
-                    f"({ref.energy_limit:.3g})"
-                )
-        far = ref.nearest.get(o.category, ref.nearest_any)
-        if math.isfinite(nn[i]) and far > 0 and nn[i] > FAR_FACTOR * far:
-            d, lim = nn[i] * ref.length_scale, far * ref.length_scale
-            flags.append(
-                f"far: {d:.3g} {unit} from its nearest neighbour; no {o.category} in the data is more than "
-                f"{lim:.3g} {unit} away"
-            )
-        for c, d, limit in apart_distances(ref, scene, i, p[None]):
-            if d[0] > FAR_FACTOR * limit:
-                flags.append(
-                    f"apart: {d[0]:.3g} {unit} from the nearest {c}; no {o.category} in the data is more "
-                    f"than {limit:.3g} {unit} from one"
-                )
-        side = touching_bound(o, p[i], scene.bounds, BOUND_TOL * ref.length_scale)
-        if side and not ref.may_touch_bounds(o.category):
-            flags.append(f"bound: pinned at the bound {side}, {ref.bound_reason(o.category, unit)}")
-        if known.size:
-            dist = float(np.linalg.norm(known - feats[i].double().cpu().numpy(), axis=1).min())
-            if dist > ref.feature_radius:
-                flags.append(
-                    f"novel: its features are {dist:.2f} from any object seen in training (limit {ref.feature_radius:.2f})"
-                )
-        if caveats is not None:
-            flags += [CAVEAT + reason for reason in caveats.reasons(o.category)]
-        out[name] = Assessment(confidence, flags)
-    return out

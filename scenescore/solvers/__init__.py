@@ -16,13 +16,14 @@ from __future__ import annotations
 from .base import Solver, StageSolver, start_poses
 from .chain import Chain
 from .registry import available, get, option_names, register, solve
-from .result import Result, Status, make_result
+from .result import Result, Samples, Status, make_result
 
 __all__ = [
     "Solver",
     "StageSolver",
     "Chain",
     "Result",
+    "Samples",
     "Status",
     "available",
     "option_names",

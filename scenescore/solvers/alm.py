@@ -47,7 +47,7 @@ from ..costs import ConstraintCost
 from ..errors import ConfigError, check_number
 from ..problem.problem import FEASIBILITY_TOL, Problem
 from .base import StageSolver, start_poses
-from .result import Result, Status, best_first, make_result
+from .result import Result, Samples, Status, best_first, make_result
 
 __all__ = ["ALMOptions", "ALMSolver", "ParticleStatus"]
 
@@ -379,10 +379,7 @@ class ALMSolver(StageSolver):
             t1 - t0,
             t2 - t1,
             message=msg,
-            samples=x,
-            sample_costs=cost,
-            sample_status=np.asarray(status),
-            sample_violations=viol,
+            samples=Samples(x, cost, np.asarray(status), viol),
             tol=o.tolerance,
         )
         return r

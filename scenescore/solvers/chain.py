@@ -7,7 +7,7 @@ from torch import Tensor
 
 from ..problem.problem import Problem, ProblemError
 from .base import Solver
-from .result import Result, make_result
+from .result import Result, Samples, make_result
 
 __all__ = ["Chain", "takes_batch"]
 
@@ -49,10 +49,7 @@ class Chain:
             sum(r.time_setup for r in results),
             sum(r.time_solve for r in results),
             message=last.message,
-            samples=None if sampled is None else sampled.samples,
-            sample_costs=None if sampled is None else sampled.sample_costs,
-            sample_status=None if sampled is None else sampled.sample_status,
-            sample_violations=None if sampled is None else sampled.sample_violations,
+            samples=None if sampled is None else Samples.of(sampled),
         )
         out.stages = results
         return out

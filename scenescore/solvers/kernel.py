@@ -25,6 +25,7 @@ from ..runtime import generator as make_generator
 
 __all__ = [
     "LangevinConfig",
+    "Limits",
     "TRAINING",
     "PLACEMENT",
     "SAMPLING",
@@ -139,22 +140,80 @@ def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> tuple[Tensor, Ten
     return e.detach(), g
 
 
+@dataclass(frozen=True)
+class Limits:
+    """What a chain may move and where: ``movable`` ``(N,)`` or ``(B, N)`` bool, the position bounds
+    ``lo``/``hi`` ``(2,)`` or ``(B, 2)``, and an optional projection applied after every step."""
+
+    movable: Tensor
+    lo: Tensor
+    hi: Tensor
+    project: Callable[[Tensor], Tensor] | None = None
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """A chain's fixed tensors, shaped for its ``B`` particles: the bounds ``(B, 1, 2)``, the normalising
+    scale ``(B, 1, 3)`` (the bounds' half-extent, pi for angles) and the movable mask ``(B, N, 1)``."""
+
+    lo: Tensor
+    hi: Tensor
+    scale: Tensor
+    move: Tensor
+    project: Callable[[Tensor], Tensor] | None
+
+    @classmethod
+    def of(cls, x: Tensor, limits: Limits) -> _Frame:
+        b, n, _ = x.shape
+        lo = limits.lo.to(x.dtype).reshape(-1, 1, 2).expand(b, 1, 2)
+        hi = limits.hi.to(x.dtype).reshape(-1, 1, 2).expand(b, 1, 2)
+        pi = torch.full((b, 1, 1), math.pi, dtype=x.dtype, device=x.device)
+        scale = torch.cat([(hi - lo) / 2, pi], dim=-1)
+        move = limits.movable.reshape(-1, n).expand(b, n)[..., None].bool()
+        return cls(lo, hi, scale, move, limits.project)
+
+
+def _step(
+    energy_fn: Callable[[Tensor], Tensor],
+    x: Tensor,
+    frame: _Frame,
+    cfg: LangevinConfig,
+    lam: float | Tensor,
+    noise: float,
+    generator: torch.Generator,
+) -> Tensor:
+    """One projected Langevin step at step size ``lam``: the gradient in normalised coordinates plus
+    noise, each coordinate's move clipped, movable objects kept inside their bounds, angles wrapped."""
+    _, g = _grad(energy_fn, x)
+    gn = g * frame.scale  # gradient in normalised coordinates
+    w = draw("randn", tuple(x.shape), generator, x.device, x.dtype) * noise if noise > 0 else 0.0
+    clip = torch.as_tensor(cfg.clip(lam), dtype=x.dtype, device=x.device)
+    delta = torch.maximum(torch.minimum(lam * (gn + w), clip), -clip)
+    moved = x - delta * frame.scale
+    moved = torch.cat(
+        [
+            torch.minimum(torch.maximum(moved[..., :2], frame.lo), frame.hi),
+            torch.remainder(moved[..., 2:] + math.pi, 2 * math.pi) - math.pi,
+        ],
+        dim=-1,
+    )
+    x = torch.where(frame.move, moved, x)  # fixed objects never move, not even by projection
+    return x if frame.project is None else frame.project(x)
+
+
 def langevin(
     energy_fn: Callable[[Tensor], Tensor],
     init: Tensor,
-    movable: Tensor,
-    lo: Tensor,
-    hi: Tensor,
+    limits: Limits,
     cfg: LangevinConfig | None = None,
     generator: torch.Generator | None = None,
-    project: Callable[[Tensor], Tensor] | None = None,
     age: Tensor | None = None,
     run_steps: int | None = None,
     groups: int = 1,
 ) -> tuple[Tensor, Tensor]:
-    """Run the chain from ``init (B, N, 3)``; returns final poses and their energies ``(B,)``.
+    """Run the chain from ``init (B, N, 3)`` within ``limits``; returns final poses and their energies
+    ``(B,)``.
 
-    ``movable``: ``(N,)`` or ``(B, N)`` bool; ``lo``/``hi``: ``(2,)`` or ``(B, 2)`` position bounds.
     ``age``: ``(B,)`` steps each chain has already run (persistent chains continue their schedule);
     ``run_steps``: how many steps to run now (default ``cfg.steps``, the schedule's length).
     ``groups``: particles form this many contiguous groups (one per scene) for ``cfg.resample``.
@@ -164,38 +223,11 @@ def langevin(
     cfg = cfg or LangevinConfig()
     if generator is None:
         generator = make_generator(0, init.device)
-    x = init.detach().clone()
-    b, n, _ = x.shape
-    dtype = x.dtype
-    lo = lo.to(dtype).reshape(-1, 1, 2).expand(b, 1, 2)
-    hi = hi.to(dtype).reshape(-1, 1, 2).expand(b, 1, 2)
-    half = (hi - lo) / 2  # (B, 1, 2)
-    pi = torch.full((b, 1, 1), math.pi, dtype=dtype, device=x.device)
-    scale = torch.cat([half, pi], dim=-1)  # (B, 1, 3)
-    move_b = movable.reshape(-1, n).expand(b, n)[..., None].bool()  # (B, N, 1)
-
-    def step(x: Tensor, lam: float | Tensor, noise: float) -> Tensor:
-        _, g = _grad(energy_fn, x)
-        gn = g * scale  # gradient in normalised coordinates
-        w = draw("randn", tuple(x.shape), generator, x.device, dtype) * noise if noise > 0 else 0.0
-        clip = torch.as_tensor(cfg.clip(lam), dtype=dtype, device=x.device)
-        delta = torch.maximum(torch.minimum(lam * (gn + w), clip), -clip)
-        moved = x - delta * scale
-        moved = torch.cat(
-            [
-                torch.minimum(torch.maximum(moved[..., :2], lo), hi),
-                torch.remainder(moved[..., 2:] + math.pi, 2 * math.pi) - math.pi,
-            ],
-            dim=-1,
-        )
-        x = torch.where(move_b, moved, x)  # fixed objects never move, not even by projection
-        if project is not None:
-            x = project(x)
-        return x
-
-    total = cfg.steps if run_steps is None else run_steps
     if cfg.resample and age is not None:
         raise ValueError("langevin: population resampling needs one schedule for all chains (age=None)")
+    x = init.detach().clone()
+    frame = _Frame.of(x, limits)
+    total = cfg.steps if run_steps is None else run_steps
     marks = {round(total * (k + 1) / (cfg.resample + 1)) for k in range(cfg.resample)}
     for t in range(total):
         if t in marks:
@@ -203,15 +235,15 @@ def langevin(
                 x = resample(x, energy_fn(x), cfg.temperature, groups, generator)
         if age is None:
             lam: float | Tensor = cfg.step_size(t)
-        else:
-            lam = torch.as_tensor(cfg.step_size((age + t).to(dtype))).reshape(b, 1, 1)  # per-chain schedule
-        x = step(x, lam, cfg.noise)
+        else:  # each chain at its own place in the schedule
+            lam = torch.as_tensor(cfg.step_size((age + t).to(x.dtype))).reshape(-1, 1, 1)
+        x = _step(energy_fn, x, frame, cfg, lam, cfg.noise, generator)
     if cfg.heading_sweep:
-        x = sweep_headings(energy_fn, x, move_b[..., 0], cfg.heading_sweep)
-        if project is not None:
-            x = project(x)
+        x = sweep_headings(energy_fn, x, frame.move[..., 0], cfg.heading_sweep)
+        if frame.project is not None:
+            x = frame.project(x)
     for _ in range(cfg.final_descent):
-        x = step(x, cfg.step_final, 0.0)
+        x = _step(energy_fn, x, frame, cfg, cfg.step_final, 0.0, generator)
     with torch.no_grad():
         e = energy_fn(x)
     return x.detach(), e.detach()

@@ -34,9 +34,9 @@ from ..errors import ConfigError, check_number
 from ..problem.problem import FEASIBILITY_TOL, Problem, ProblemError
 from ..runtime import check_memory, generator, torch_threads
 from .base import StageSolver
-from .kernel import SAMPLING, LangevinConfig, langevin, screen
+from .kernel import SAMPLING, LangevinConfig, Limits, langevin, screen
 from .projection import LinearisedProjection
-from .result import Result, Status, best_first, make_result
+from .result import Result, Samples, Status, best_first, make_result
 
 MAX_PARTICLES = 65_536  # more is a typo, not a plan: memory grows with particles x objects^2
 MAX_CANDIDATES = 1_000_000
@@ -172,9 +172,8 @@ class LangevinSolver(StageSolver):
         cost = problems[0].cost if len(problems) == 1 else stack_sums([p.cost for p in problems], sizes)
         t1 = time.perf_counter()
         groups = len(problems) if len(set(sizes)) == 1 else 1
-        x, e = langevin(
-            cost, project(torch.cat(starts)), movable, lo, hi, o.chain, gen, project=project, groups=groups
-        )
+        limits = Limits(movable, lo, hi, project)
+        x, e = langevin(cost, project(torch.cat(starts)), limits, o.chain, gen, groups=groups)
         t2 = time.perf_counter()
         setup, solve = (t1 - t0) / len(problems), (t2 - t1) / len(problems)
         return [
@@ -262,6 +261,5 @@ class LangevinSolver(StageSolver):
             time_setup,
             time_solve,
             message="; ".join(notes),
-            samples=xs,
-            sample_costs=es,
+            samples=Samples(xs, es),
         )

@@ -18,7 +18,7 @@ from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene
 
-__all__ = ["Result", "Status", "make_result", "best_first"]
+__all__ = ["Result", "Samples", "Status", "make_result", "best_first"]
 
 
 class Status(StrEnum):
@@ -175,22 +175,37 @@ def _numpy(a: np.ndarray | torch.Tensor) -> np.ndarray:
     return np.asarray(a, dtype=float)
 
 
+@dataclass
+class Samples:
+    """Every particle a sampling or batched stage ends with, for :func:`make_result`: ``poses (B, N, 3)``,
+    each one's cost ``(B,)``, its :class:`Status` value and its largest violation in metres (batched
+    refinements), those it has."""
+
+    poses: np.ndarray | torch.Tensor
+    costs: np.ndarray | torch.Tensor | None = None
+    status: np.ndarray | None = None
+    violations: np.ndarray | torch.Tensor | None = None
+
+    @classmethod
+    def of(cls, r: Result) -> Samples | None:
+        """A result's own samples (None where it kept none)."""
+        if r.samples is None:
+            return None
+        return cls(r.samples, r.sample_costs, r.sample_status, r.sample_violations)
+
+
 def _alternatives(
-    problem: Problem,
-    samples: np.ndarray | torch.Tensor | None,
-    costs: np.ndarray | torch.Tensor | None,
-    objective: float,
-    tol: float,
+    problem: Problem, samples: Samples | None, objective: float, tol: float
 ) -> Alternatives | None:
     """The samples that satisfy the constraints within ``tol`` and that no guide doubts, with their
     cost's margin over the answer's ``objective``; None without samples and their costs, or without a
     guide to judge them (then nothing is evaluated)."""
-    if samples is None or costs is None or not math.isfinite(objective) or not guides(problem.cost):
+    if samples is None or samples.costs is None or not math.isfinite(objective) or not guides(problem.cost):
         return None
-    x = problem.full(samples)
+    x = problem.full(samples.poses)
     with torch.no_grad():
         keep = (problem.violation(x) <= tol) & ~problem.doubted(x)
-    margins = _numpy(costs) - objective
+    margins = _numpy(samples.costs) - objective
     keep_np = keep.cpu().numpy() & np.isfinite(margins)
     return Alternatives(_numpy(x)[keep_np], margins[keep_np])
 
@@ -204,13 +219,11 @@ def make_result(
     time_setup: float,
     time_solve: float,
     message: str = "",
-    samples: np.ndarray | torch.Tensor | None = None,
-    sample_costs: np.ndarray | torch.Tensor | None = None,
-    sample_status: np.ndarray | None = None,
-    sample_violations: np.ndarray | torch.Tensor | None = None,
+    samples: Samples | None = None,
     tol: float = FEASIBILITY_TOL,
 ) -> Result:
-    """Evaluate ``poses (N, 3)`` on the problem: terms, violations, the exact feasibility check."""
+    """Evaluate ``poses (N, 3)`` on the problem: terms, violations, the exact feasibility check; a
+    sampling or batched stage's every particle kept from ``samples``."""
     x = problem.full(poses)[:1]
     with torch.no_grad():
         tv = problem.cost.terms(x)
@@ -231,7 +244,7 @@ def make_result(
             max_v, violated = w[1], f"{c.name}: {w[0]}"
     feas = problem.check(x[0], tol)
     pose_np = _numpy(x[0])
-    alternatives = _alternatives(problem, samples, sample_costs, objective, tol)
+    alternatives = _alternatives(problem, samples, objective, tol)
     confidence = verdicts(problem.cost, pose_np, alternatives)
     success = status.ok and max_v <= tol and math.isfinite(objective)
     if status == Status.CONVERGED and max_v > tol:
@@ -258,10 +271,14 @@ def make_result(
         time_setup=time_setup,
         time_solve=time_solve,
         message=message,
-        samples=None if samples is None else _numpy(samples),
-        sample_costs=None if sample_costs is None else _numpy(sample_costs),
-        sample_status=None if sample_status is None else np.asarray(sample_status, dtype=str),
-        sample_violations=None if sample_violations is None else _numpy(sample_violations),
+        samples=None if samples is None else _numpy(samples.poses),
+        sample_costs=None if samples is None or samples.costs is None else _numpy(samples.costs),
+        sample_status=None
+        if samples is None or samples.status is None
+        else np.asarray(samples.status, dtype=str),
+        sample_violations=None
+        if samples is None or samples.violations is None
+        else _numpy(samples.violations),
         problem=problem,
         confidence=confidence,
     )

@@ -19,7 +19,8 @@ from scenescore.errors import ConfigError
 from scenescore.learn import NetworkConfig, Run, TrainConfig, fit
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
-from scenescore.models.trust import assess, member_shares
+from scenescore.models.flags import assess
+from scenescore.models.trust import member_shares
 from scenescore.planning.placement import PLACE
 
 CFG = TrainConfig(iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))

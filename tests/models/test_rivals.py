@@ -13,7 +13,7 @@ from scenescore.costs import LearnedEnergy
 from scenescore.costs.guide import Alternatives
 from scenescore.learn import NetworkConfig, TrainConfig, fit
 from scenescore.models.rivals import RIVAL_DISTANCE, RIVAL_MARGIN, matched_distances, rivals
-from scenescore.solvers import Status, make_result
+from scenescore.solvers import Samples, Status, make_result
 
 
 def test_objects_of_one_category_are_matched_and_others_are_not():
@@ -102,7 +102,7 @@ def test_a_result_flags_rivals_only_among_feasible_undoubted_samples(model):
         samples = np.concatenate([poses[None], shifted[rows]])
         costs = np.concatenate([[objective], np.full(len(samples) - 1, objective + margin)])
         r = make_result(
-            problem, "langevin", poses, Status.SAMPLED, 1, 0.0, 0.0, samples=samples, sample_costs=costs
+            problem, "langevin", poses, Status.SAMPLED, 1, 0.0, 0.0, samples=Samples(samples, costs)
         )
         return [f for f in r.confidence[name].flags if f.startswith("rival:")]
 

@@ -11,7 +11,8 @@ from conftest import rounding_tolerance
 
 import scenescore as ss
 from scenescore.learn import NetworkConfig, TrainConfig, fit
-from scenescore.models.trust import TrustReference, assess, energy_shares
+from scenescore.models.flags import assess
+from scenescore.models.trust import TrustReference, energy_shares
 from scenescore.planning.placement import PLACE, place
 
 SMALL = replace(PLACE, particles=16, candidates=256, chain=replace(PLACE.chain, steps=20, final_descent=10))

@@ -20,7 +20,7 @@ from ..placement import PLACE
 from .problem import tidy_problem
 from .pruning import blanked_scenes, place_again, prune_moves, refine_and_plan
 from .selection import PAIR_CANDIDATES, SWAP_CANDIDATES, select_moves
-from .types import EFFORT, Reach, TidyError, TidyOptions, TidyResult
+from .types import EFFORT, Reach, Request, TidyError, TidyOptions, TidyResult
 
 __all__ = ["tidy", "tidy_many"]
 
@@ -62,6 +62,7 @@ def tidy_many(
                 "where they are (fill unknown poses first with `scenescore place`)"
             )
     problems = [tidy_problem(model, s, effort, stay, weights, reach, o) for s in scenes]
+    ask = Request(effort, stay, weights, reach)
     tol = o.move_tol * model.config.length_scale  # metres
     # small tensors: one torch thread (restored after; the placement chains choose their own)
     with torch_threads(1), _placing_ahead(model, scenes, problems, o, seed, tol) as ahead:
@@ -80,7 +81,7 @@ def tidy_many(
         out = []
         for s, p, x, m, alt in zip(scenes, problems, pruned, moved, placed):
             r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
-            out.append(refine_and_plan(model, s, p, r0, m, alt, effort, seed, stay, weights, reach, o))
+            out.append(refine_and_plan(model, s, p, r0, m, alt, seed, ask, o))
     return out
 
 

@@ -4,8 +4,6 @@ cost refined over its moved objects alone, and the moves planned."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 import torch
 
@@ -16,7 +14,7 @@ from ...solvers import Result, make_result, solve
 from ..placement import place_many
 from .plan import plan_moves, validate_plan
 from .problem import count_weight, displacements, tidy_problem, whole_cost
-from .types import PlanCheck, Reach, TidyError, TidyOptions, TidyResult
+from .types import PlanCheck, Request, TidyError, TidyOptions, TidyResult
 
 __all__ = ["prune_moves", "blanked_scenes", "place_again", "refine_and_plan"]
 
@@ -98,16 +96,14 @@ def refine_and_plan(
     r: Result,
     moved: list[str],
     placed: list[np.ndarray],
-    effort: float,
     seed: int,
-    stay: Sequence[str],
-    weights: dict[str, float] | None,
-    reach: Reach | None,
+    ask: Request,
     o: TidyOptions,
 ) -> TidyResult:
     """Choose among the selection's pruned poses ``r.poses`` and the ``placed`` candidates (the
     missing-object placement of the moved objects, and of each subset one smaller) the one that violates
     the constraints least at the lowest whole cost; refine its moved objects alone; plan the moves."""
+    effort, stay, weights, reach = ask.effort, ask.stay, ask.weights, ask.reach
     current = scene.poses()
     x = r.poses
     tol = o.move_tol * model.config.length_scale  # metres

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
@@ -19,6 +20,7 @@ from ...solvers.langevin import LangevinOptions
 
 __all__ = [
     "EFFORT",
+    "Request",
     "COUNT",
     "GAIN_QUANTILE",
     "Reach",
@@ -38,6 +40,18 @@ GAIN_QUANTILE = 0.75
 
 
 Reach = tuple[tuple[float, float], float]  # ((x, y) of the robot's base, radius in metres)
+
+
+@dataclass(frozen=True)
+class Request:
+    """What a tidy is asked beside the scene: how much the robot's effort weighs (``effort``), the
+    objects that must not move (``stay``), each object's effort weight (``weights``, heavy or fragile:
+    more) and the robot's ``reach``."""
+
+    effort: float = EFFORT
+    stay: Sequence[str] = ()
+    weights: dict[str, float] | None = None
+    reach: Reach | None = None
 
 
 class TidyError(ProblemError):
