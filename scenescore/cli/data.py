@@ -23,8 +23,8 @@ from .train_settings import build_config, parse_overrides, read_config
 
 PPM = number(0, open_lo=True)  # pixels per metre
 GENERATE_SAMPLE = 16  # scenes generated first to estimate the memory of a large --n
-# memory per byte of a scene's JSON line: the Scene objects (about 3x), the text and its UTF-8 bytes
-# while the file is written (2x), rounded up (measured 4-6x over the bundled scenarios)
+# memory per byte of a scene's JSON line: the Scene objects, the text and its UTF-8 bytes while the file
+# is written, rounded up over the bundled scenarios
 GENERATE_BYTES_PER_TEXT_BYTE = 6
 
 

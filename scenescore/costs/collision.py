@@ -22,7 +22,7 @@ from .symbolic import SymbolicProblem, register_casadi_form
 __all__ = ["HingeCollision", "CollisionSpec"]
 
 # bytes one pair of one pose set takes while its signed distance is computed (float64, with the
-# footprints' vertices and the intermediates; measured about 2 KB)
+# footprints' vertices and the intermediates), with room to spare
 PAIR_BYTES = 4096
 # metres added to the bounding-circle test on top of the rounding allowance: a pair is skipped only
 # when its circles are this far beyond the margin, so its computed signed distance is certainly above it

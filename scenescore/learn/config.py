@@ -30,13 +30,11 @@ __all__ = [
 
 Graph = Literal["auto", "dense", "local"]
 #: ``graph="auto"`` gives data whose largest scene has more objects than this (walls included) a local
-#: graph. A local graph of 8 neighbours is faster from about 16 objects (``python
-#: benchmarks/bench_rooms.py``), but the table-top scenarios of up to 25 objects keep the dense graph
-#: their figures were measured with
+#: graph: from here a scene's cost grows with its objects, not their square, and every table top keeps
+#: the dense graph (``benchmarks/bench_rooms.py`` times both)
 LOCAL_FROM = 32
-#: the learning rate where ``TrainConfig.lr`` is None: the dense graph's, and the local graph's (a room's
-#: 600 iterations at 2e-3 left zoo-classroom's chairs 3.04 oracle means off over 3 seeds, at 4e-3 2.70;
-#: docs/studies.md)
+#: the learning rate where ``TrainConfig.lr`` is None: the dense graph's, and the local graph's, higher
+#: for a room's many objects (docs/studies.md, "The zoo's rooms")
 LR_DENSE = 2e-3
 LR_LOCAL = 4e-3
 
@@ -104,13 +102,13 @@ class TrainConfig:
     length_scale: float | None = None
     edge_range: float | None = None
     # derive edge_range from the data (False: linear edge positions). Off by default: saturated offsets
-    # placed Table 2's unseen spoons far off on one seed
+    # misplace objects of unseen sizes (Table 2's spoons)
     saturate_edges: bool = False
     # the bounds' sides as fixed objects in every graph; None: when the data stands against them
     walls: bool | None = None
     # with walls: walls as lines (see EnergyConfig.wall_lines): no edge reads where along a wall an
     # object stands. Read as boxes, the four walls add up to ramps across the room that pull objects away
-    # from their places (studies/wall_pull.py); False reads them as boxes
+    # from their places (docs/studies.md, "Behind the defaults"); False reads them as boxes
     wall_lines: bool = True
     # with walls: length scales beyond which the offsets on an edge touching a wall saturate, each axis
     # on its own (EnergyConfig.wall_range); None: linear
@@ -224,8 +222,8 @@ def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = 
     set, the encoder reading sizes in the data's unit, the batch, the chains' schedule and the averaging.
 
     A local graph's length scale is that of the objects to place (the data's movable ones): the
-    network tells offsets apart to a fraction of a length scale, and in a room the fixed furniture
-    (1.2 m desks) would set one that places 45 cm chairs only to about 10 cm."""
+    network tells offsets apart to a fraction of a length scale, and in a room the large fixed furniture
+    would set one too coarse for the chairs between it."""
     walls = cfg.walls if cfg.walls is not None else stands_against_walls(scenes)
     largest = max(len(s) for s in scenes) + (WALLS if walls else 0)
     local = cfg.graph == "local" or (cfg.graph == "auto" and largest > LOCAL_FROM)

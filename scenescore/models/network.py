@@ -145,9 +145,7 @@ def parameter_count(cfg: EnergyConfig) -> int:
 # on the CPU, one pass over more edges than this (pose sets x N x N) runs slower per pose set than the
 # same pass in pieces: its (B, N, N, H) tensors leave the cache and fresh large allocations fault in their
 # pages. Energies without a gradient, and a gradient for the poses alone (sampling, refinement), are then
-# taken piece by piece, each piece forward and backward at once (``python benchmarks/bench_network.py``:
-# 1.4 to 1.8 times the pose sets per second of the chunked path, 5000 pose sets of 4 to 12 objects and
-# 1000 of 20 and 28, one thread)
+# taken piece by piece, each piece forward and backward at once (``benchmarks/bench_network.py`` times it)
 CACHE_EDGES = 49152
 # a batch of two pieces of this many edges or more (pose sets x N x the nodes each reads) is cut into as
 # many pieces of at least this many as the machine has usable cores, which run side by side on the cores
@@ -155,9 +153,9 @@ CACHE_EDGES = 49152
 # numbers never depend on the load; smaller pieces would spend more time in Python than in torch
 PIECE_EDGES = 4096
 
-# floats per edge (i, j) of one pose set that evaluating the energy holds at its peak, measured (CPU,
-# float32) and rounded up: the edge features, then per message layer its (N, N, inner) tensors; with a
-# gradient every layer's are kept for the backward pass
+# floats per edge (i, j) of one pose set that evaluating the energy holds at its peak (CPU, float32,
+# rounded up): the edge features, then per message layer its (N, N, inner) tensors; with a gradient
+# every layer's are kept for the backward pass
 _EDGE_FLOATS = 32
 _LAYER_FLOATS = 16
 
@@ -218,8 +216,8 @@ class MessageLayer(nn.Module):
     ) -> Tensor:
         """:meth:`_summed` without a gradient: the same operations in the same order (the same numbers),
         each written into the one ``(B, N, N or S, H)`` tensor, which saves writing and reading several
-        (``python benchmarks/bench_network.py``, table 3). With a gradient the tensors stay apart: in
-        place there measured slower."""
+        (``benchmarks/bench_network.py`` times both). With a gradient the tensors stay apart, which is
+        the faster there."""
         w_i, m = self.w_i(v)[:, :, None, :], senders(self.w_j(v), index)
         m = w_i + m if index is None else m.add_(w_i)  # a dense graph's senders are a broadcast view
         if self.w_e is not None and e is not None:
@@ -291,8 +289,7 @@ class EnergyNet(nn.Module):
     def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
         """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.runtime.memory.chunk_rows`). With a
         gradient a local graph's batch is cut only as the memory budget needs (its rows grow with ``n``,
-        not ``n^2``, and cutting a training batch into chunks runs its forward pass twice: 1.4 times the
-        time of a training step of 40 objects, ``python benchmarks/bench_rooms.py``)."""
+        not ``n^2``, and cutting a training batch into chunks runs its forward pass twice)."""
         return chunk_rows(
             self.row_bytes(n, grad, itemsize),
             f"energy network: one pose set of {n} objects ({self.cfg.describe()}"

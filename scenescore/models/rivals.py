@@ -25,8 +25,8 @@ __all__ = ["RIVAL_DISTANCE", "RIVAL_MARGIN", "Rival", "matched_distances", "riva
 #: length scales: a particle that puts an object this far from the answer's place is another answer
 RIVAL_DISTANCE = 2.0
 #: the most a rival may cost above the answer (the objective's units; for placement the learned
-#: energy's, where a margin m means the model finds the rival exp(-m) times as likely); what it flags on
-#: the zoo is in docs/studies.md ("The trust check on the zoo")
+#: energy's, where a margin m means the model finds the rival exp(-m) times as likely; docs/studies.md,
+#: "The trust check on the zoo")
 RIVAL_MARGIN = 1.0
 
 

@@ -76,17 +76,15 @@ __all__ = [
 ]
 
 # length scales: a category whose data come this close to a bound may be pinned there (a nightstand
-# 1.6 cm from the wall in a bedroom whose length scale is 27 cm may stand against it; a coffee table
-# a metre from every wall may not)
+# against a bedroom's wall may stand against it; a coffee table far from every wall may not)
 NEAR_BOUND = 0.5
 FAR_FACTOR = 1.5  # flag an object this many times farther from its neighbours than the data's farthest
 MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
 # interquartile ranges of the reference beyond its largest value at which a flag fires: the energy
-# share's (1: at 0.5 it flagged more good placements on the zoo and no more catastrophic ones,
-# studies/trust_margins.py), an ensemble member's share (0.5: at 1 one catastrophic placement of the
-# zoo at 12 scenes went unflagged), the energy per object of a checkpoint without shares
+# share's, an ensemble member's share (lower: a member's doubt is the catastrophic placement's sign),
+# the energy per object of a checkpoint without shares (docs/studies.md, "The share flags' margins")
 SHARE_MARGIN = 1.0
 MEMBER_MARGIN = 0.5
 ENERGY_MARGIN = 0.5

@@ -54,9 +54,8 @@ __all__ = [
 #: the scene's known objects), the PLACEMENT schedule; the answer is the best particle that puts no
 #: object where the data has none of its category (at a bound none comes near, or far from the rest)
 PLACE = LangevinOptions(particles=64, candidates=2048, proposals=0.5, chain=PLACEMENT, trusted_first=True)
-#: uniform candidates per square length scale of the bounds that placement screens at the least: 1 cm parts
-#: on a 0.3 m board (3600 square length scales) need about 8000, where 2048 left the right slot unfound
-#: for 5 of zoo-pcb's 16 test scenes (``studies/zoo_configs.py``'s "misses: search")
+#: uniform candidates per square length scale of the bounds that placement screens at the least, so that
+#: small parts on a large board start near their slot (docs/studies.md, "Behind the defaults")
 CANDIDATE_DENSITY = 2.0
 MAX_COVERING = 32_768  # the most candidates that covering the bounds asks for
 #: a pair move (:func:`_in_pairs`) draws an object beside one of this many known objects nearest to it
@@ -236,7 +235,7 @@ def _partner(model: ScoreModel, scene: Scene, draws: Tensor, i: int, j: int, gen
 def refining(options: LangevinOptions) -> LangevinOptions:
     """``options`` for particles that :func:`in_turn` found: its chain's gradient steps all noise-free at
     its final step size. Its exploring steps, large and noisy, carried several objects out of the
-    narrow minimum of a full table (a chair 15 cm off a slot for two scores worse than anywhere else)."""
+    narrow minimum of a full table (a chair a little off a slot for two scores worse than anywhere else)."""
     c = options.chain
     return replace(options, chain=replace(c, steps=0, final_descent=c.steps + c.final_descent))
 

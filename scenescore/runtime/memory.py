@@ -133,7 +133,7 @@ def return_freed_memory() -> None:
 
     Chunked evaluation allocates and frees tensors of a few tens of MB hundreds of times; glibc's
     default raises its mapping threshold after the first frees and then serves them from the heap,
-    which fragments and grows (a 200-object scene's screening reached 4 GB in 25 MB chunks). With a
+    which fragments and grows without bound. With a
     fixed threshold below the chunks' tensors they are mapped, and unmapped when freed. Called once,
     by the first chunked evaluation; it costs page faults, so one pass that fits is left as it is."""
     global _freed_returned

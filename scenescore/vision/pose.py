@@ -60,8 +60,8 @@ def _extents(pts: np.ndarray, m: np.ndarray, alpha: float, ppm: float):
     d = pts - m
     u, v = d @ a, d @ b
     # extents are the range of the pixel centres: a pixel belongs to a mask when about half of it is
-    # covered, so at any angle but the axis-aligned ones the outermost centres lie on the outline
-    # (measured on rendered sprites: within half a pixel, slightly long on average)
+    # covered, so at any angle but the axis-aligned ones the outermost centres lie on the outline (the
+    # extents need no half-pixel margin; tests/vision checks them against rendered sprites)
     half = 0.0
     u0, u1, v0, v1 = u.min() - half, u.max() + half, v.min() - half, v.max() + half
     cu, cv = 0.5 * (u0 + u1), 0.5 * (v0 + v1)
