@@ -5,8 +5,9 @@ know which unit that is. A scene may name it in its ``meta`` (``"meta": {"unit":
 generate`` names metres). Reports then give lengths in it (metres as centimetres); data that names no
 unit has its lengths given in its own unit, and the report says so rather than guessing.
 
-Figures are stored as ``*_cm`` keys, 100 times the data's length (centimetres for metres, the keys'
-historical meaning); :class:`ShownUnit` turns such a figure into the length a report prints.
+Figures are stored under ``*_cm`` keys as 100 times the data's length: centimetres for data in metres,
+the unit every built-in scenario uses, and the keys results files and reports have always been read by;
+:class:`ShownUnit` turns such a figure into the length a report prints in the data's own unit.
 """
 
 from __future__ import annotations
