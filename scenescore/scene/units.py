@@ -6,8 +6,8 @@ generate`` names metres). Reports then give lengths in it (metres as centimetres
 unit has its lengths given in its own unit, and the report says so rather than guessing.
 
 Figures are stored under ``*_cm`` keys as 100 times the data's length: centimetres for data in metres,
-the unit every built-in scenario uses, and the keys results files and reports have always been read by;
-:class:`ShownUnit` turns such a figure into the length a report prints in the data's own unit.
+the unit every built-in scenario uses, so that every results file has one schema whatever its data's
+unit; :class:`ShownUnit` turns such a figure into the length a report prints in the data's own unit.
 """
 
 from __future__ import annotations
