@@ -15,23 +15,22 @@ from scenescore.encoders import FootprintEncoder
 from scenescore.errors import ConfigError
 from scenescore.models import ScoreModel, TidyCalibration, load
 from scenescore.planning.tidying import (
-    COUNT,
     Step,
     TidyError,
     TidyOptions,
     calibrate,
     count_weight,
     effort_weights,
-    move_gains,
-    object_gains,
     plan_moves,
     tidy,
-    tidy_problem,
     validate_plan,
 )
+from scenescore.planning.tidying.calibration import move_gains, object_gains
 from scenescore.planning.tidying.draws import NEAR, exchanges, near_draws, swap_draws
+from scenescore.planning.tidying.problem import tidy_problem
 from scenescore.planning.tidying.pruning import place_again
 from scenescore.planning.tidying.selection import select_moves
+from scenescore.planning.tidying.types import COUNT
 from scenescore.problem.problem import Problem
 from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers.kernel import PLACEMENT

@@ -39,36 +39,26 @@ pick-and-place plan) and :mod:`.pipeline` (the stages in order: :func:`tidy`, :f
 
 from __future__ import annotations
 
-from .calibration import calibrate, move_gains, object_gains
-from .draws import NEAR
+from .calibration import calibrate
 from .pipeline import tidy, tidy_many
-from .plan import blocking, plan_moves, validate_plan
-from .problem import count_weight, effort_weights, tidy_problem
-from .selection import PAIR_CANDIDATES, SWAP_CANDIDATES
-from .types import COUNT, EFFORT, GAIN_QUANTILE, PlanCheck, Reach, Step, TidyError, TidyOptions, TidyResult
+from .plan import plan_moves, validate_plan
+from .problem import count_weight, effort_weights
+from .types import EFFORT, PlanCheck, Reach, Request, Step, TidyError, TidyOptions, TidyResult
 
 __all__ = [
     "EFFORT",
-    "COUNT",
-    "GAIN_QUANTILE",
-    "NEAR",
-    "PAIR_CANDIDATES",
-    "SWAP_CANDIDATES",
+    "PlanCheck",
+    "Reach",
+    "Request",
+    "Step",
     "TidyError",
     "TidyOptions",
     "TidyResult",
-    "Step",
-    "PlanCheck",
-    "Reach",
-    "tidy",
-    "tidy_many",
-    "tidy_problem",
     "calibrate",
     "count_weight",
     "effort_weights",
-    "object_gains",
-    "move_gains",
     "plan_moves",
+    "tidy",
+    "tidy_many",
     "validate_plan",
-    "blocking",
 ]
