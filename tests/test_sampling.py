@@ -19,7 +19,7 @@ from scenescore.solvers.kernel import (
     PLACEMENT,
     LangevinConfig,
     Limits,
-    langevin,
+    chain,
     resample,
     screen,
     sweep_headings,
@@ -76,7 +76,7 @@ def test_resampled_population_ends_in_the_deep_basin():
         cfg = LangevinConfig(steps=4, resample=1)
         x = torch.zeros(2, 1, 3)
         limits = Limits(torch.ones(1, dtype=torch.bool), -torch.ones(2), torch.ones(2))
-        langevin(lambda x: x.sum((1, 2)), x, limits, cfg, age=torch.zeros(2))
+        chain(lambda x: x.sum((1, 2)), x, limits, cfg, age=torch.zeros(2))
 
 
 def _face(poses: torch.Tensor) -> torch.Tensor:

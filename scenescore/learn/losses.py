@@ -16,7 +16,7 @@ from ..models import SceneTensors, ScoreModel
 from ..runtime.devices import generator
 from ..runtime.threads import torch_threads
 from ..scene.scene import Scene
-from ..solvers.kernel import TRAINING, Limits, langevin
+from ..solvers.kernel import TRAINING, Limits, chain
 from .config import TrainConfig
 
 __all__ = ["ABSENT", "infonce_loss", "energy_l2", "gradient_penalty", "training_loss", "heldout_loss"]
@@ -90,7 +90,7 @@ def heldout_loss(
 
     with torch_threads(1):  # large batches: pieces side by side (EnergyNet.forward)
         limits = Limits(movable, rep.lo, rep.hi)
-        neg, _ = langevin(energy, init, limits, replace(TRAINING, final_descent=0), gen)
+        neg = chain(energy, init, limits, replace(TRAINING, final_descent=0), gen)
         with torch.no_grad():
             loss = infonce_loss(
                 model.energy(st.poses, st), model.energy(neg, rep).reshape(len(scenes), negatives)

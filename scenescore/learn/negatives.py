@@ -18,7 +18,7 @@ import torch
 from ..geometry.poses import compose_poses, relative_poses, uniform_init
 from ..models import SceneTensors
 from ..runtime.devices import draw
-from ..solvers.kernel import LangevinConfig, Limits, langevin
+from ..solvers.kernel import LangevinConfig, Limits, chain
 from .config import TrainConfig
 
 __all__ = ["ChainBuffer", "perturbed_negatives", "reanchored_negatives", "log_uniform"]
@@ -153,7 +153,7 @@ class ChainBuffer:
         movable = self.movable[rows].reshape(b * k, -1)
         age = self.age[rows].reshape(-1)
         limits = Limits(movable, rep.lo, rep.hi)
-        neg, _ = langevin(energy, init, limits, schedule, self.gen, age=age, run_steps=steps)
+        neg = chain(energy, init, limits, schedule, self.gen, age=age, run_steps=steps)
         self.poses[rows] = neg.reshape(b, k, *neg.shape[1:])
         self.age[rows] += steps
         return neg

@@ -29,6 +29,7 @@ __all__ = [
     "TRAINING",
     "PLACEMENT",
     "SAMPLING",
+    "chain",
     "langevin",
     "best_of",
     "screen",
@@ -128,16 +129,21 @@ def resample(x: Tensor, e: Tensor, temperature: float, groups: int, generator: t
     return x[(idx + p * torch.arange(groups, device=idx.device)[:, None]).flatten()]
 
 
-def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> tuple[Tensor, Tensor]:
+def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> Tensor:
+    """The energy's gradient at ``x``, taken without asking the device whether it is finite (a chain
+    checks its gradients once, at its end: :func:`_finite`)."""
     with torch.enable_grad():
         x = x.detach().requires_grad_(True)
-        e = energy_fn(x)
-        (g,) = torch.autograd.grad(e.sum(), x)
-    if not torch.isfinite(g).all():
+        (g,) = torch.autograd.grad(energy_fn(x).sum(), x)
+    return g
+
+
+def _finite(ok: Tensor) -> None:
+    """Raise unless every gradient a chain took was finite (``ok``: one flag, and-ed over its steps)."""
+    if not bool(ok):
         raise FloatingPointError(
             "Langevin: the energy's gradient is not finite (NaN or inf) at some particle"
         )
-    return e.detach(), g
 
 
 @dataclass(frozen=True)
@@ -181,10 +187,11 @@ def _step(
     lam: float | Tensor,
     noise: float,
     generator: torch.Generator,
-) -> Tensor:
+) -> tuple[Tensor, Tensor]:
     """One projected Langevin step at step size ``lam``: the gradient in normalised coordinates plus
-    noise, each coordinate's move clipped, movable objects kept inside their bounds, angles wrapped."""
-    _, g = _grad(energy_fn, x)
+    noise, each coordinate's move clipped, movable objects kept inside their bounds, angles wrapped; the
+    new poses and whether the gradient was finite (a flag on the device, not read here)."""
+    g = _grad(energy_fn, x)
     gn = g * frame.scale  # gradient in normalised coordinates
     w = draw("randn", tuple(x.shape), generator, x.device, x.dtype) * noise if noise > 0 else 0.0
     clip = torch.as_tensor(cfg.clip(lam), dtype=x.dtype, device=x.device)
@@ -198,10 +205,10 @@ def _step(
         dim=-1,
     )
     x = torch.where(frame.move, moved, x)  # fixed objects never move, not even by projection
-    return x if frame.project is None else frame.project(x)
+    return (x if frame.project is None else frame.project(x)), torch.isfinite(g).all()
 
 
-def langevin(
+def chain(
     energy_fn: Callable[[Tensor], Tensor],
     init: Tensor,
     limits: Limits,
@@ -210,15 +217,16 @@ def langevin(
     age: Tensor | None = None,
     run_steps: int | None = None,
     groups: int = 1,
-) -> tuple[Tensor, Tensor]:
-    """Run the chain from ``init (B, N, 3)`` within ``limits``; returns final poses and their energies
-    ``(B,)``.
+) -> Tensor:
+    """Run the chain from ``init (B, N, 3)`` within ``limits``; returns the final poses (:func:`langevin`
+    returns their energies too).
 
     ``age``: ``(B,)`` steps each chain has already run (persistent chains continue their schedule);
     ``run_steps``: how many steps to run now (default ``cfg.steps``, the schedule's length).
     ``groups``: particles form this many contiguous groups (one per scene) for ``cfg.resample``.
-    No gradient flows through the chain. Everything runs on the device of ``init``; ``generator`` (default:
-    seed 0 on that device) draws the noise.
+    No gradient flows through the chain, and nothing in it waits on the device: its gradients are checked
+    once, at its end (a non-finite one raises ``FloatingPointError``). Everything runs on the device of
+    ``init``; ``generator`` (default: seed 0 on that device) draws the noise.
     """
     cfg = cfg or LangevinConfig()
     if generator is None:
@@ -227,6 +235,7 @@ def langevin(
         raise ValueError("langevin: population resampling needs one schedule for all chains (age=None)")
     x = init.detach().clone()
     frame = _Frame.of(x, limits)
+    ok = torch.ones((), dtype=torch.bool, device=x.device)
     total = cfg.steps if run_steps is None else run_steps
     marks = {round(total * (k + 1) / (cfg.resample + 1)) for k in range(cfg.resample)}
     for t in range(total):
@@ -237,16 +246,34 @@ def langevin(
             lam: float | Tensor = cfg.step_size(t)
         else:  # each chain at its own place in the schedule
             lam = torch.as_tensor(cfg.step_size((age + t).to(x.dtype))).reshape(-1, 1, 1)
-        x = _step(energy_fn, x, frame, cfg, lam, cfg.noise, generator)
+        x, fine = _step(energy_fn, x, frame, cfg, lam, cfg.noise, generator)
+        ok = ok & fine
     if cfg.heading_sweep:
+        _finite(ok)  # the sweep reads its energies back
         x = sweep_headings(energy_fn, x, frame.move[..., 0], cfg.heading_sweep)
         if frame.project is not None:
             x = frame.project(x)
     for _ in range(cfg.final_descent):
-        x = _step(energy_fn, x, frame, cfg, cfg.step_final, 0.0, generator)
+        x, fine = _step(energy_fn, x, frame, cfg, cfg.step_final, 0.0, generator)
+        ok = ok & fine
+    _finite(ok)
+    return x.detach()
+
+
+def langevin(
+    energy_fn: Callable[[Tensor], Tensor],
+    init: Tensor,
+    limits: Limits,
+    cfg: LangevinConfig | None = None,
+    generator: torch.Generator | None = None,
+    groups: int = 1,
+) -> tuple[Tensor, Tensor]:
+    """:func:`chain` from ``init (B, N, 3)`` within ``limits``, its whole schedule: the final poses and
+    their energies ``(B,)``."""
+    x = chain(energy_fn, init, limits, cfg, generator, groups=groups)
     with torch.no_grad():
         e = energy_fn(x)
-    return x.detach(), e.detach()
+    return x, e.detach()
 
 
 def sweep_headings(energy_fn: Callable[[Tensor], Tensor], x: Tensor, movable: Tensor, k: int) -> Tensor:
