@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ...models import ScoreModel, TidyCalibration
+from ...runtime.threads import torch_threads
 from ...scene.scene import Scene
 from .problem import tidy_problem, whole_cost
 from .selection import best_replacements
@@ -19,21 +20,23 @@ __all__ = ["object_gains", "move_gains", "calibrate"]
 def object_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> list[tuple[int, str, float]]:
     """Per movable object of each scene taken as right: ``(scene index, name, gain)``, how much re-placing
     that object alone lowers the learned energy (with non-overlap and bounds; negative where the search
-    finds no pose as good as the one it has); the noise of the model's own judgement that a move must beat."""
+    finds no pose as good as the one it has); the noise of the model's own judgement that a move must
+    beat. Every object's search runs in one batched chain per object count, on one torch thread."""
     scenes = list(scenes)
     o = TidyOptions(count=0.0)
     problems = [tidy_problem(model, s, 0.0, options=o) for s in scenes]
     items = [(k, n) for k, p in enumerate(problems) for n in p.movable]
     now = [float(whole_cost(p, s.poses()[None])[0]) for p, s in zip(problems, scenes)]
     # one job per object: the scene repeated, so that each object's best re-placement is kept
-    found = best_replacements(
-        model,
-        [scenes[k] for k, _ in items],
-        [problems[k] for k, _ in items],
-        {j: [[n]] for j, (_, n) in enumerate(items)},
-        o,
-        seed,
-    )
+    with torch_threads(1):  # small tensors; the energy's large batches go in pieces side by side
+        found = best_replacements(
+            model,
+            [scenes[k] for k, _ in items],
+            [problems[k] for k, _ in items],
+            {j: [[n]] for j, (_, n) in enumerate(items)},
+            o,
+            seed,
+        )
     return [(k, n, now[k] - found[j][0] if j in found else 0.0) for j, (k, n) in enumerate(items)]
 
 
