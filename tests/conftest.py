@@ -23,6 +23,19 @@ from scenescore.runtime.threads import thread_budget
 THREADS = int(os.environ.get("SCENESCORE_TEST_THREADS") or os.environ.get("OMP_NUM_THREADS") or "1")
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _own_cache(tmp_path_factory: pytest.TempPathFactory):
+    """The library's user cache (compiled kernels, tidy calibrations) in a folder of the test session's
+    own: no test reads what another run left, none writes to the user's."""
+    old = os.environ.get("SCENESCORE_CACHE_DIR")
+    os.environ["SCENESCORE_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
+    yield
+    if old is None:
+        os.environ.pop("SCENESCORE_CACHE_DIR", None)
+    else:
+        os.environ["SCENESCORE_CACHE_DIR"] = old
+
+
 @pytest.fixture(autouse=True)
 def _thread_budget(request: pytest.FixtureRequest):
     """The test's torch threads and budget; torch's setting is restored afterwards, so that no test's own

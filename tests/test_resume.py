@@ -136,7 +136,7 @@ def _cli(data: Path, out: Path, *extra: str) -> list[str]:
 
 @pytest.mark.parametrize("folds", [False, True])  # --val 0; six scenes cross-validated, in workers
 def test_sigkill_then_resume_writes_the_uninterrupted_weights(scenes, tmp_path, folds):
-    few = scenes[:6]  # tidying is calibrated on every scene after training: few keep the test short
+    few = scenes[:6]  # cross-validated and evaluated after training: few keep the test short
     data = tmp_path / "dining.jsonl"
     ss.write_jsonl(data, few)
     # TMPDIR: the killed run cannot remove its temporary folders; they go with the test's

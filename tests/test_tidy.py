@@ -254,6 +254,38 @@ def test_calibrate_stores_every_objects_gain(tmp_path):
     assert load(tmp_path / "m.ckpt").info.tidy == model.info.tidy
 
 
+def test_a_deferred_calibration_is_measured_at_the_first_tidy_and_kept_for_the_next(tmp_path, monkeypatch):
+    """``defer`` keeps the scenes in the checkpoint; the first tidy measures the same gains ``calibrate``
+    would have, keeps them in the user's cache, and a later tidy with the same checkpoint reads them."""
+    from scenescore.planning.tidying import calibration
+
+    monkeypatch.setenv("SCENESCORE_CACHE_DIR", str(tmp_path / "cache"))
+    torch.manual_seed(0)
+    model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    scenes = [_two(a=(-0.3, 0.1 * k), b=(0.3, -0.1)) for k in range(3)]
+    now = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
+    now.net.load_state_dict(model.net.state_dict())
+    calibrate(now, scenes, seed=2)
+    calibration.defer(model, scenes, seed=2)
+    assert count_weight(model) == COUNT  # not measured yet: the default cost of a move
+    model.save(tmp_path / "m.ckpt")
+    first = load(tmp_path / "m.ckpt")
+    said: list[str] = []
+    calibration.ensure_calibrated(first, say=said.append)
+    assert first.info.tidy == now.info.tidy and len(said) == 1  # measured: the same gains
+    assert len(list((tmp_path / "cache" / "tidy").glob("*.json"))) == 1
+
+    def never(*a, **k):
+        raise AssertionError("measured again")
+
+    monkeypatch.setattr(calibration, "calibrate", never)
+    again = load(tmp_path / "m.ckpt")
+    tidy(again, scenes[0], seed=0, options=TidyOptions(place=False, refine=None))  # reads the cache
+    assert again.info.tidy == now.info.tidy
+    with pytest.raises(TidyError, match="no scene with every pose known"):
+        calibration.defer(model, [scenes[0].without("red")])
+
+
 def test_swap_draws_put_each_pair_in_each_others_places():
     scene = Scene(
         [

@@ -26,6 +26,10 @@ class TidyCalibration:
     gains: list[float] | None = None  # every object's single-move gain, at least 0, sorted
     scenes: int | None = None  # the scenes measured on
     quantile: float | None = None  # the quantile ``move_gain`` is
+    # not yet measured: the scenes taken as right (scene JSON) to measure it on when the model first
+    # tidies, and the seed of that search (``scenescore.planning.tidying.calibration.ensure_calibrated``)
+    pending: list[dict[str, Any]] | None = None
+    seed: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}

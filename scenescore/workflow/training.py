@@ -28,7 +28,7 @@ from ..learn.loop import fit
 from ..learn.members import Group, Job, member_state, train_groups
 from ..learn.run import Run
 from ..models import ScoreModel
-from ..planning.tidying import calibrate, count_weight
+from ..planning.tidying.calibration import defer
 from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene, write_jsonl
 from ..viz.plot import training_figure
@@ -171,7 +171,10 @@ def train(
         training_figure(info.history or [], info.chance_loss, examples, out.plot)
         say(f"wrote {out.plot}")
     _calibrate(model, held, train_s, seed, say)
-    record["tidy"] = info.tidy.to_dict() if info.tidy is not None else None
+    # the calibration, or the number of scenes it will be measured on (their poses stay in the checkpoint)
+    record["tidy"] = (
+        None if info.tidy is None else {k: v for k, v in info.tidy.to_dict().items() if k != "pending"}
+    )
     _save(model, out_path, out.report, record, say)
     _remove_state(run.state, cfg.members)
     return model
@@ -234,14 +237,13 @@ def _write_heldout(
 
 
 def _calibrate(model: ScoreModel, held: list[Scene], train_s: list[Scene], seed: int, say: Log) -> None:
-    """Measure what a tidying move must gain on scenes taken as right: the held-out ones, else some
-    training ones."""
+    """Keep the scenes taken as right (the held-out ones, else some training ones) that tidying
+    calibrates what a move must gain on, when the model first tidies (:func:`defer`)."""
     right = held or train_s[:TIDY_SCENES]
-    calibrate(model, right, seed=seed)
+    defer(model, right, seed=seed)
     say(
-        f"tidy: a move must lower the energy by {count_weight(model, scene=right[0]):.3f} at effort 1 in a scene "
-        f"of {len(right[0])} objects (the single-move gains of {len(right)} "
-        f"{'held-out' if held else 'training'} scenes)"
+        f"tidy: what a move must gain is measured on {len(right)} {'held-out' if held else 'training'} "
+        "scenes when the model first tidies"
     )
 
 

@@ -1,20 +1,25 @@
 """Calibration: what a move must gain to be worth making, measured on scenes taken as right (how much
-re-placing one object lowers the learned energy by the model's own noise) and stored in the model."""
+re-placing one object lowers the learned energy by the model's own noise) and stored in the model:
+now (:func:`calibrate`), or when the model first tidies (:func:`defer`, :func:`ensure_calibrated`)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import hashlib
+import json
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from ...models import ScoreModel, TidyCalibration
+from ...runtime.cache import cache_folder
 from ...runtime.threads import torch_threads
+from ...scene.outputs import atomic_write_text
 from ...scene.scene import Scene
 from .problem import tidy_problem, whole_cost
 from .selection import best_replacements
 from .types import GAIN_QUANTILE, TidyError, TidyOptions
 
-__all__ = ["object_gains", "move_gains", "calibrate"]
+__all__ = ["object_gains", "move_gains", "calibrate", "defer", "ensure_calibrated"]
 
 
 def object_gains(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> list[tuple[int, str, float]]:
@@ -72,3 +77,44 @@ def calibrate(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> floa
         quantile=GAIN_QUANTILE,
     )
     return gain
+
+
+def defer(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> None:
+    """Keep ``scenes`` (taken as right) in ``model.info.tidy`` to calibrate on when the model first
+    tidies (:func:`ensure_calibrated`), instead of measuring now: training then does no tidying work."""
+    posed = [s for s in scenes if not s.unknown]
+    if not posed:
+        raise TidyError("calibrate: no scene with every pose known to measure the move gain on")
+    model.info.tidy = TidyCalibration(scenes=len(posed), pending=[s.to_dict() for s in posed], seed=seed)
+
+
+def ensure_calibrated(model: ScoreModel, say: Callable[[str], None] | None = None) -> None:
+    """Measure a deferred calibration (:func:`defer`) now, once per model on this machine: the gains of a
+    model's scenes are kept in the user's cache folder (``tidy/``, keyed by the model's weights and its
+    scenes), so a later tidy with the same checkpoint reads them. ``say``: told when it measures."""
+    stored = model.info.tidy
+    if stored is None or stored.pending is None:
+        return
+    key = _key(model, stored)
+    path = cache_folder("tidy") / f"{key}.json"
+    if path.exists():
+        try:
+            model.info.tidy = TidyCalibration.from_dict(json.loads(path.read_text(encoding="utf-8")))
+            return
+        except (OSError, ValueError, TypeError):
+            pass  # damaged: measured again and written anew
+    scenes = [Scene.from_dict(d) for d in stored.pending]
+    if say is not None:
+        say(f"tidy: calibrating on {len(scenes)} scenes (once for this model; kept in {path.parent})")
+    calibrate(model, scenes, seed=stored.seed or 0)
+    assert model.info.tidy is not None
+    atomic_write_text(path, json.dumps(model.info.tidy.to_dict()) + "\n")
+
+
+def _key(model: ScoreModel, stored: TidyCalibration) -> str:
+    """A digest of what a calibration depends on: the networks' weights, the scenes and the seed."""
+    h = hashlib.sha256()
+    for name, tensor in sorted(model.net.state_dict().items()):
+        h.update(name.encode() + b"\0" + tensor.detach().cpu().contiguous().numpy().tobytes())
+    h.update(json.dumps([stored.pending, stored.seed], sort_keys=True).encode())
+    return h.hexdigest()[:32]

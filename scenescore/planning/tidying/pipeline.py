@@ -5,6 +5,7 @@ selection goes on."""
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
@@ -17,6 +18,7 @@ from ...runtime.threads import POOL_ROWS, torch_threads
 from ...scene.scene import Scene
 from ...solvers import Status, make_result
 from ..placement import PLACE
+from .calibration import ensure_calibrated
 from .problem import tidy_problem
 from .pruning import blanked_scenes, place_again, prune_moves, refine_and_plan
 from .selection import PAIR_CANDIDATES, SWAP_CANDIDATES, select_moves
@@ -55,6 +57,8 @@ def tidy_many(
     """:func:`tidy` for several scenes, their placements batched (one chain per number of objects)."""
     o = options or TidyOptions()
     scenes = list(scenes)
+    if o.count is None:  # a move's cost is the model's calibrated gain: measured now if deferred
+        ensure_calibrated(model, say=_note)
     for scene in scenes:
         if scene.unknown:
             raise TidyError(
@@ -83,6 +87,10 @@ def tidy_many(
             r0 = make_result(p, "tidy", x, Status.SAMPLED, 0, 0.0, 0.0)
             out.append(refine_and_plan(model, s, p, r0, m, alt, seed, ask, o))
     return out
+
+
+def _note(line: str) -> None:
+    print(line, file=sys.stderr)
 
 
 @contextmanager
