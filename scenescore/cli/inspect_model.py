@@ -51,7 +51,7 @@ def describe(model: ScoreModel, path: str | Path) -> dict[str, Any]:
             "members": info.members,  # an ensemble's: each member's seed, final loss and seconds
         },
         "losses": {"final": info.final_loss, "chance": info.chance_loss, "history": info.history},
-        "tidy_calibration": info.tidy.to_dict() if info.tidy is not None else None,
+        "tidy_calibration": info.tidy.summary() if info.tidy is not None else None,
         "validation": info.validation,
         "caveats": info.caveats.to_dict() if info.caveats is not None else None,  # flagged in every placement
         "trust_reference": info.trust is not None,

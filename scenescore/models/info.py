@@ -34,6 +34,12 @@ class TidyCalibration:
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
 
+    def summary(self) -> dict[str, Any]:
+        """What a report shows of it: :meth:`to_dict` without the pending scenes' poses, and whether the
+        gains are measured yet."""
+        out = {k: v for k, v in self.to_dict().items() if k != "pending"}
+        return {**out, "measured": self.pending is None}
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TidyCalibration:
         return cls(**{f.name: d.get(f.name) for f in fields(cls)})

@@ -171,10 +171,7 @@ def train(
         training_figure(info.history or [], info.chance_loss, examples, out.plot)
         say(f"wrote {out.plot}")
     _calibrate(model, held, train_s, seed, say)
-    # the calibration, or the number of scenes it will be measured on (their poses stay in the checkpoint)
-    record["tidy"] = (
-        None if info.tidy is None else {k: v for k, v in info.tidy.to_dict().items() if k != "pending"}
-    )
+    record["tidy"] = None if info.tidy is None else info.tidy.summary()
     _save(model, out_path, out.report, record, say)
     _remove_state(run.state, cfg.members)
     return model
