@@ -84,13 +84,14 @@ def run(args: argparse.Namespace, folder: Path) -> None:
     with thread_budget(1):
         if args.what == "compose":
             from scenescore.experiments import compose
+            from scenescore.experiments.execution import Execution
 
             compose.run(
                 seeds=1,
                 methods=["SceneScore", compose.BATCHED],
                 levels=[args.level],
                 samples=args.samples,
-                progress=False,
+                execution=Execution(progress=False),
             )
         else:
             from scenescore.experiments import zoo

@@ -37,12 +37,24 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from scenescore.experiments.execution import Execution
 from scenescore.experiments.zoo import run
 from scenescore.experiments.zoo_verdicts import Cases, catastrophic, good, trust_line
 from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.planning.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
 from scenescore.scene.outputs import atomic_write_text
+
+
+def _execution(args: argparse.Namespace) -> Execution:
+    """How each configuration's run runs: no bars, each pair's line on stderr as it ends (the table is
+    stdout's), ``--jobs`` workers, ``--cache`` the model cache."""
+    return Execution(
+        progress=False,
+        log=lambda line: print(line, file=sys.stderr, flush=True),
+        jobs=args.jobs,
+        cache=args.cache,
+    )
 
 
 def main() -> None:
@@ -96,15 +108,12 @@ def main() -> None:
         res = run(
             args.seeds,
             scenarios,
-            progress=False,
-            log=lambda line: print(line, file=sys.stderr, flush=True),  # each pair as it ends
             config=TrainConfig(**overrides),
-            jobs=args.jobs,
             energy_only=args.energy_only,
             place=place,
             val=args.val,
-            cache=args.cache,
             train_scenes=args.train_scenes,
+            execution=_execution(args),
         )
         label = json.dumps(overrides, sort_keys=True)
         if args.out is not None:

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from . import UserError
 
 if TYPE_CHECKING:
+    from ..experiments.execution import Execution
     from ..experiments.report import Row
     from ..experiments.tasks import Sweep
 
@@ -54,10 +55,18 @@ def _methods(args: argparse.Namespace) -> list[str] | None:
     return args.methods.split(",") if args.methods else None
 
 
-def _shared(args: argparse.Namespace, out: Path) -> dict[str, Any]:
-    """The options every experiment's ``run`` takes alike: device, worker processes, model cache and the
-    task records under ``out`` (:func:`_sweep`)."""
-    return {"device": args.device, "jobs": args.jobs, "cache": args.model_cache, "sweep": _sweep(args, out)}
+def _shared(args: argparse.Namespace, out: Path) -> Execution:
+    """How every experiment runs alike: progress unless ``--quiet``, the device, worker processes, model
+    cache and the task records under ``out`` (:func:`_sweep`)."""
+    from ..experiments.execution import Execution
+
+    return Execution(
+        progress=not args.quiet,
+        device=args.device,
+        jobs=args.jobs,
+        cache=args.model_cache,
+        sweep=_sweep(args, out),
+    )
 
 
 def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
@@ -78,10 +87,9 @@ def _missing(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         seeds=args.seeds,
         methods=_methods(args),
         quick=args.quick,
-        progress=not args.quiet,
         scenes_fn=scenes_fn,
         encoder=encoder,
-        **_shared(args, out),
+        execution=_shared(args, out),
     )
     md = (
         "## Table 1: missing objects"
@@ -133,10 +141,9 @@ def _novel(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         seeds=args.seeds,
         methods=_methods(args),
         quick=args.quick,
-        progress=not args.quiet,
         encoders=encoders,
         scenes_fn=scenes_fn,
-        **_shared(args, out),
+        execution=_shared(args, out),
     )
     md = (
         "## Table 2: novel objects (ordered rows of cutlery)"
@@ -163,9 +170,8 @@ def _heatmap(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     res = heatmap.run(
         seeds=args.seeds,
         quick=args.quick,
-        progress=not args.quiet,
         out=out,
-        **_shared(args, out),
+        execution=_shared(args, out),
     )
     md = heatmap.format_heatmap(res)
     return md, res.rows()
@@ -178,9 +184,8 @@ def _compose(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         seeds=args.seeds,
         methods=_methods(args),
         quick=args.quick,
-        progress=not args.quiet,
         refine_options=None if args.alm is None else _alm_options(args.alm),
-        **_shared(args, out),
+        execution=_shared(args, out),
     )
     out.mkdir(parents=True, exist_ok=True)
     compose.plot_compose(res, out / "fig4.png")
@@ -209,11 +214,10 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     res = zoo.run(
         seeds=args.seeds,
         scenarios=names,
-        progress=not args.quiet,
         config=cfg,
         energy_only=args.energy_only,
         train_scenes=args.train_scenes,
-        **_shared(args, out),
+        execution=_shared(args, out),
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case, indent=1) + "\n")
@@ -274,6 +278,7 @@ def _efforts(text: str) -> tuple[float, ...]:
 
 def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     import json
+    from dataclasses import replace
 
     from ..experiments import tidy
     from ..learn import TrainConfig
@@ -287,14 +292,15 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     cfg = TrainConfig(iterations=iterations) if iterations else TrainConfig()
     efforts = tidy.EFFORTS if args.efforts is None else _efforts(args.efforts)
     log = (lambda s: None) if args.quiet else print
+    # tidy's own lines follow --quiet; its training's bars are off whatever it is (tidy's default)
+    execution = replace(_shared(args, out), progress=False, log=log)
     res = tidy.run(
         names,
         efforts=efforts,
         test_scenes=test_scenes,
         seeds=range(args.seed, args.seed + args.seeds),
         config=cfg,
-        log=log,
-        **_shared(args, out),
+        execution=execution,
     )
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "cases.json", json.dumps(res.per_case(), indent=1) + "\n")
@@ -338,8 +344,7 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
 
     sizes = _sizes(args.sizes) if args.sizes else ([2, 3] if args.quick else list(relations.SIZES))
     problems = args.problems or (5 if args.quick else 100)
-    res = relations.run(
-        seeds=args.seeds,
+    settings = relations.RelationSettings(
         sizes=sizes,
         problems=problems,
         tries=args.tries or 10,
@@ -348,9 +353,8 @@ def _relations(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         examples=args.examples or (256 if args.quick else relations.EXAMPLES),
         restarts=relation_models.RESTARTS if args.restarts is None else args.restarts,
         config=relations.train_config(args.iterations, args.quick),
-        progress=not args.quiet,
-        **_shared(args, out),
     )
+    res = relations.run(seeds=args.seeds, settings=settings, execution=_shared(args, out))
     out.mkdir(parents=True, exist_ok=True)
     relations.plot_relations(res, out / "solved.png")
     iterations = relations.train_config(args.iterations, args.quick).iterations

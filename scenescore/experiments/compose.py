@@ -45,8 +45,9 @@ from ..learn import Run, TrainConfig, fit
 from ..scenarios.tv import TVScenario
 from ..scene.scene import Scene, SceneError
 from ..solvers import get, solve
+from .execution import Execution
 from .report import Row, format_table
-from .tasks import Sweep, Task, run_tasks
+from .tasks import Task, run_tasks
 
 if TYPE_CHECKING:
     from ..models import ScoreModel
@@ -161,24 +162,21 @@ def run(
     seeds: int = 1,
     methods: list[str] | None = None,
     quick: bool = False,
-    progress: bool = True,
     levels: list[int] | None = None,
     samples: int | None = None,
     scenes: int | None = None,
     refine: int | None = None,
-    log: Callable[[str], None] = print,
-    device: Any = None,
-    jobs: int = 1,
     refine_options: dict[str, Any] | None = None,
-    cache: Any = None,
-    sweep: Sweep | None = None,
+    *,
+    execution: Execution | None = None,
 ) -> ComposeResult:
-    """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level;
-    SceneScore's model and problems on ``device`` (NeatNet on the CPU). ``jobs > 1`` runs the seeds in
-    that many worker processes of one thread each (the counts do not depend on it; seconds are summed
-    over the workers). ``refine_options``: the :data:`BATCHED` row's ``alm`` options (default
-    :data:`REFINE`). ``cache``: a model cache folder (:mod:`scenescore.learn.cache`). ``sweep``: where
-    each seed's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
+    """Fig. 4 over ``seeds`` seeds: correct samples of ``samples`` per method at each clutter level.
+    ``refine_options``: the :data:`BATCHED` row's ``alm`` options (default :data:`REFINE`).
+    ``execution``: where and how (default :class:`Execution`'s): SceneScore's model and problems on its
+    ``device`` (NeatNet on the CPU); ``jobs > 1`` runs the seeds in that many worker processes of one
+    thread each (the counts do not depend on it; seconds are summed over the workers); its ``sweep``
+    keeps each seed's record, to resume from (:mod:`scenescore.experiments.tasks`)."""
+    ex = execution or Execution()
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in METHODS]
     if unknown:
@@ -200,11 +198,11 @@ def run(
         per_scene=per_scene,
         k_refine=k_refine,
         quick=quick,
-        progress=progress,
-        bars=progress and jobs == 1,
-        device=device,
+        progress=ex.progress,
+        bars=ex.progress and ex.jobs == 1,
+        device=ex.device,
         refine_options=res.refine_options,
-        cache=cache,
+        cache=ex.cache,
     )
     config = {
         "methods": list(chosen),
@@ -213,13 +211,12 @@ def run(
         "per_scene": per_scene,
         "refine": k_refine,
         "quick": quick,
-        "device": str(device),
+        "device": str(ex.device),
         "refine_options": res.refine_options,
     }  # every setting a seed's record depends on
     tasks = [Task.of("compose", seed=seed, config=config) for seed in range(seeds)]
-    for counts, uniq, seconds in run_tasks(
-        one, tasks, jobs, log, "Fig. 4 seeds" if progress else None, sweep
-    ):
+    bar = "Fig. 4 seeds" if ex.progress else None
+    for counts, uniq, seconds in run_tasks(one, tasks, ex.jobs, ex.log, bar, ex.sweep):
         for m in chosen:
             res.correct.setdefault(m, []).append(counts[m])
             res.distinct.setdefault(m, []).append(uniq[m])

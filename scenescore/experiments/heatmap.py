@@ -23,8 +23,9 @@ from ..learn import Run, TrainConfig, fit
 from ..planning.heatmap import energy_grid, grid_minimum
 from ..scenarios import DeskScenario
 from ..viz.plot import draw_heatmap
+from .execution import Execution
 from .report import Row, format_table, over_seeds
-from .tasks import Sweep, Task, run_tasks
+from .tasks import Task, run_tasks
 
 __all__ = ["run", "HeatmapResult", "format_heatmap", "PEN_DISTANCES"]
 
@@ -56,33 +57,33 @@ class HeatmapResult:
 def run(
     seeds: int = 1,
     quick: bool = False,
-    progress: bool = True,
     out: str | Path | None = None,
-    log: Callable[[str], None] = print,
     resolution: float = 0.01,
     n_train: int | None = None,
     iterations: int | None = None,
-    device: Any = None,
-    cache: Any = None,
-    jobs: int = 1,
-    sweep: Sweep | None = None,
+    *,
+    execution: Execution | None = None,
 ) -> HeatmapResult:
-    """Train on desk scenes per seed (on ``device``; ``cache``: a model cache folder, see
-    :mod:`scenescore.learn.cache`), measure the minima; PNGs (seed 0) under ``out`` when given. Each seed
-    is a task (``jobs``: worker processes; ``sweep``: where each seed's record is kept, to resume from,
-    and what runs it; :mod:`scenescore.experiments.tasks`); ``seconds`` sums the tasks'."""
+    """Train on desk scenes per seed, measure the minima; PNGs (seed 0) under ``out`` when given. Each
+    seed is a task; ``seconds`` sums the tasks'. ``execution``: where and how (default
+    :class:`Execution`'s): the models train on its ``device``, with its model ``cache``; ``jobs``:
+    worker processes; its ``sweep`` keeps each seed's record, to resume from, and runs it
+    (:mod:`scenescore.experiments.tasks`)."""
+    ex = execution or Execution()
     config = {
         "quick": quick,
         "resolution": resolution,
         "n_train": n_train,
         "iterations": iterations or (60 if quick else TrainConfig().iterations),
-        "device": str(device),
+        "device": str(ex.device),
         "out": None if out is None else str(out),
     }  # every setting a seed's record depends on
-    one = partial(_seed, config=config, progress=progress and jobs == 1, device=device, cache=cache)
+    progress = ex.progress and ex.jobs == 1
+    one = partial(_seed, config=config, progress=progress, device=ex.device, cache=ex.cache)
     tasks = [Task.of("heatmap", seed=seed, config=config) for seed in range(seeds)]
     res = HeatmapResult()
-    for record in run_tasks(one, tasks, jobs, log, "heatmap seeds" if progress else None, sweep):
+    bar = "heatmap seeds" if ex.progress else None
+    for record in run_tasks(one, tasks, ex.jobs, ex.log, bar, ex.sweep):
         res.per_seed.append(record["figures"])
         res.figures += record["files"]
         res.seconds += record["seconds"]

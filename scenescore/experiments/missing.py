@@ -20,8 +20,9 @@ from ..learn import RAW_EDGES, TrainConfig
 from ..planning.placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
 from ..scene.scene import Scene, SceneError
+from .execution import Execution
 from .report import SeedResults, format_table
-from .tasks import Sweep, Task, describe, run_tasks
+from .tasks import Task, describe, run_tasks
 
 __all__ = ["PAPER", "fit_predict", "run", "METHODS", "EXTRA_METHODS"]
 
@@ -87,22 +88,19 @@ def run(
     seeds: int = 3,
     methods: list[str] | None = None,
     quick: bool = False,
-    progress: bool = True,
     scenes_fn: Callable[[list[Scene], list[Scene]], tuple[list[Scene], list[Scene]]] | None = None,
-    log: Callable[[str], None] = print,
     encoder: Encoder | None = None,
-    device: Any = None,
-    jobs: int = 1,
-    cache: Any = None,
-    sweep: Sweep | None = None,
+    *,
+    execution: Execution | None = None,
 ) -> MissingResult:
-    """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs;
-    ``device``: where SceneScore's models train and place (the baselines stay on the CPU). ``jobs > 1``
-    runs each method on each seed in one of that many worker processes of one thread each (the figures
-    do not depend on it); with ``scenes_fn`` (a function of this process) they run here, in turn.
-    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`). ``sweep``: where each method and
-    seed's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
-    table = _methods(DiningScenario(), quick, encoder, device)
+    """Run Table 1 over ``seeds`` seeds; ``scenes_fn`` may turn ground-truth scenes into other graphs.
+    ``execution``: where and how (default :class:`Execution`'s); its ``device`` is where SceneScore's
+    models train and place (the baselines stay on the CPU); ``jobs > 1`` runs each method on each seed
+    in one of that many worker processes of one thread each (the figures do not depend on it); with
+    ``scenes_fn`` (a function of this process) they run here, in turn; its ``sweep`` keeps each method
+    and seed's record, to resume from (:mod:`scenescore.experiments.tasks`)."""
+    ex = execution or Execution()
+    table = _methods(DiningScenario(), quick, encoder, ex.device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]
     if unknown:
@@ -110,11 +108,11 @@ def run(
     one = partial(
         _one,
         quick=quick,
-        progress=progress and (jobs == 1 or scenes_fn is not None),
+        progress=ex.progress and (ex.jobs == 1 or scenes_fn is not None),
         scenes_fn=scenes_fn,
         encoder=encoder,
-        device=device,
-        cache=cache,
+        device=ex.device,
+        cache=ex.cache,
         graphs={},
     )
     # every setting a record depends on beyond its method and seed
@@ -122,14 +120,13 @@ def run(
         "quick": quick,
         "graphs": describe(scenes_fn),
         "encoder": describe(encoder),
-        "device": str(device),
+        "device": str(ex.device),
     }
     tasks = [Task.of("missing", method=m, seed=seed, config=config) for seed in range(seeds) for m in chosen]
     res = MissingResult()
-    jobs = 1 if scenes_fn is not None else jobs
-    for task, (figs, dt) in zip(
-        tasks, run_tasks(one, tasks, jobs, log, "Table 1" if progress else None, sweep)
-    ):
+    jobs = 1 if scenes_fn is not None else ex.jobs
+    bar = "Table 1" if ex.progress else None
+    for task, (figs, dt) in zip(tasks, run_tasks(one, tasks, jobs, ex.log, bar, ex.sweep)):
         res.per_seed.setdefault(task.method, []).append(figs)
         res.seconds[task.method] = res.seconds.get(task.method, 0.0) + dt
     return res

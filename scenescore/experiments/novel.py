@@ -28,9 +28,10 @@ from ..planning.placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene.scene import Scene, SceneError
+from .execution import Execution
 from .missing import fit_predict
 from .report import Row, SeedResults, format_table
-from .tasks import Sweep, Task, describe, run_tasks
+from .tasks import Task, describe, run_tasks
 
 __all__ = [
     "PAPER",
@@ -169,16 +170,12 @@ def run(
     seeds: int = 3,
     methods: list[str] | None = None,
     quick: bool = False,
-    progress: bool = True,
-    log: Callable[[str], None] = print,
     rules: tuple[str, ...] = RULES,
     n_test: int | None = None,
     encoders: Sequence[Encoder] | None = None,
     scenes_fn: Callable[[list[Scene], list[Scene], Encoder], tuple[list[Scene], list[Scene]]] | None = None,
-    device: Any = None,
-    jobs: int = 1,
-    cache: Any = None,
-    sweep: Sweep | None = None,
+    *,
+    execution: Execution | None = None,
     **scenario: Any,
 ) -> NovelResult:
     """Table 2 over ``seeds`` seeds; ``n_test`` (fewer test rows) and ``scenario`` options are for tests.
@@ -186,17 +183,18 @@ def run(
     ``encoders``: SceneScore gives one row per encoder (the method ``"SceneScore"`` stands for them all).
     ``scenes_fn(train, test, encoder)``: the graphs the methods see instead of the ground truth, built
     with ``encoder`` (SceneScore's rows each with their own; the other methods with the first's).
-    ``device``: where SceneScore's models train and place (the baselines stay on the CPU).
-    ``jobs > 1`` runs each method on each seed and rule in one of that many worker processes of one
-    thread each (the figures do not depend on it); with ``encoders`` or ``scenes_fn`` (objects of this
-    process) they run here, in turn. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`).
-    ``sweep``: where each method, seed and rule's record is kept, to resume from (:mod:`scenescore.experiments.tasks`).
+    ``execution``: where and how (default :class:`Execution`'s): its ``device`` is where SceneScore's
+    models train and place (the baselines stay on the CPU); ``jobs > 1`` runs each method on each seed
+    and rule in one of that many worker processes of one thread each (the figures do not depend on
+    it); with ``encoders`` or ``scenes_fn`` (objects of this process) they run here, in turn; its
+    ``sweep`` keeps each method, seed and rule's record, to resume from (:mod:`scenescore.experiments.tasks`).
     """
+    ex = execution or Execution()
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
-    chosen = _chosen(methods or default_methods(log), encoders)
+    chosen = _chosen(methods or default_methods(ex.log), encoders)
     for rule in rules:
-        table = _methods(OrderingScenario(rule=rule, **scenario), quick, encoders, device)
+        table = _methods(OrderingScenario(rule=rule, **scenario), quick, encoders, ex.device)
         unknown = [m for m in chosen if m not in table]
         if unknown:
             raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")
@@ -204,12 +202,12 @@ def run(
     one = partial(
         _one,
         quick=quick,
-        progress=progress and (jobs == 1 or here),
+        progress=ex.progress and (ex.jobs == 1 or here),
         n_test=n_test,
         encoders=encoders,
         scenes_fn=scenes_fn,
-        device=device,
-        cache=cache,
+        device=ex.device,
+        cache=ex.cache,
         scenario=scenario,
         graphs={},
     )
@@ -218,7 +216,7 @@ def run(
         "n_test": n_test,
         "encoders": [describe(e) for e in encoders or []],
         "graphs": describe(scenes_fn),
-        "device": str(device),
+        "device": str(ex.device),
         "scenario": scenario,
     }  # every setting a record depends on beyond its method, seed and rule
     tasks = [
@@ -227,7 +225,8 @@ def run(
         for rule in rules
         for m in chosen
     ]
-    records = run_tasks(one, tasks, 1 if here else jobs, log, "Table 2" if progress else None, sweep)
+    bar = "Table 2" if ex.progress else None
+    records = run_tasks(one, tasks, 1 if here else ex.jobs, ex.log, bar, ex.sweep)
     errors = {(t.seed, t.scenario, t.method): r for t, r in zip(tasks, records)}
     res = NovelResult()
     for seed in range(seeds):

@@ -29,6 +29,7 @@ from ..learn import Run, TrainConfig, fit
 from ..learn.cache import run_cache
 from ..scenarios.relation_problems import PROBLEM_RELATIONS, relation_problems
 from ..scene.scene import SceneError
+from .execution import Execution
 from .relation_methods import (
     HEADINGS,
     LANGEVIN,
@@ -47,7 +48,7 @@ from .relation_methods import (
 )
 from .relation_models import EXAMPLES, PERTURBED, RESTARTS, relation_training, train_config, train_relations
 from .report import SeedResults, format_table, over_seeds
-from .tasks import Sweep, Task, run_tasks
+from .tasks import Task, run_tasks
 
 if TYPE_CHECKING:
     from ..models import ScoreModel
@@ -67,6 +68,7 @@ __all__ = [
     "PERTURBED",
     "SIZES",
     "STEPS",
+    "RelationSettings",
     "RelationsResult",
     "train_config",
     "relation_training",
@@ -81,11 +83,62 @@ __all__ = [
 SIZES: tuple[int, ...] = tuple(range(2, 11))  # objects per problem: 2 to 10
 
 
+@dataclass(frozen=True)
+class RelationSettings:
+    """The experiment's problems, methods and relation models: every setting its figures depend on.
+
+    ``sizes``: the numbers of objects per problem, one column each; ``problems``: how many problems of
+    each size, the same for every method; ``tries``: arrangements per problem and method (a problem is
+    solved when one of them passes every check); ``pool``: Langevin particles per try, each try the best
+    of them; ``methods``: the rows (default :data:`METHODS`); ``relations``: those the problems draw
+    from, each one model; ``examples``: the example scenes each relation model trains on;
+    ``restarts``: how many times at most a model is trained again while its edge is flat; ``config``:
+    the models' training (default :func:`train_config`)."""
+
+    sizes: Sequence[int] = SIZES
+    problems: int = 100
+    tries: int = 10
+    pool: int = POOL
+    methods: list[str] | None = None
+    relations: Sequence[str] = PROBLEM_RELATIONS
+    examples: int = EXAMPLES
+    restarts: int = RESTARTS
+    config: TrainConfig | None = None
+
+    def chosen(self) -> list[str]:
+        """The methods run: ``methods``, or every one of :data:`METHODS`."""
+        return self.methods or list(METHODS)
+
+    def training(self) -> TrainConfig:
+        """The models' training settings: ``config``, or :func:`train_config`'s."""
+        return self.config or train_config()
+
+    def record_config(self, device: Any) -> dict[str, Any]:
+        """Every setting a task's record depends on beyond its seed and size (the task adds its size):
+        these settings, and the ``device`` the models train on."""
+        chosen = self.chosen()
+        config = {
+            "methods": chosen,
+            "problems": self.problems,
+            "tries": self.tries,
+            "pool": self.pool,
+            "relations": list(self.relations),
+            "examples": self.examples,
+            "restarts": self.restarts,
+            "training": self.training(),
+            "device": str(device),
+        }
+        if WHOLE in chosen:
+            config["sizes"] = list(self.sizes)  # the whole-scene model trains on every size's arrangements
+        return config
+
+
 @dataclass
 class RelationsResult(SeedResults):
     """Per method and seed: ``solved_<N>`` (fraction of the problems of N objects solved) and
     ``seconds_<N>`` (seconds per problem) for each N of ``sizes``; ``seconds``: each method's total
-    over seeds, its share of the relation models' training included."""
+    over seeds, its share of the relation models' training included. The other fields: the
+    :class:`RelationSettings` it was run with."""
 
     sizes: list[int] = field(default_factory=list)
     problems: int = 0
@@ -95,15 +148,23 @@ class RelationsResult(SeedResults):
     pool: int = POOL
     relations: list[str] = field(default_factory=list)
 
+    @classmethod
+    def of(cls, settings: RelationSettings) -> RelationsResult:
+        """An empty result of a run with ``settings``."""
+        return cls(
+            sizes=list(settings.sizes),
+            problems=settings.problems,
+            tries=settings.tries,
+            pool=settings.pool,
+            relations=list(settings.relations),
+            examples=settings.examples,
+            restarts=settings.restarts,
+        )
+
 
 def _models(
-    chosen: list[str],
-    sizes: list[int],
+    settings: RelationSettings,
     seed: int,
-    relations: list[str],
-    examples: int,
-    restarts: int,
-    config: TrainConfig,
     progress: bool,
     log: Callable[[str], None],
     device: Any,
@@ -111,12 +172,13 @@ def _models(
 ) -> tuple[dict[str, ScoreModel], ScoreModel | None, dict[str, float]]:
     """The seed's relation models (for the relation methods) and whole-scene model (for its method), and
     each method's seconds getting them (trained, or read from the model cache ``cache``)."""
+    chosen, config, relations = settings.chosen(), settings.training(), list(settings.relations)
     seconds = dict.fromkeys(chosen, 0.0)
     models: dict[str, ScoreModel] = {}
     if LANGEVIN in chosen or REFINED in chosen:
         t0 = time.perf_counter()
         models = train_relations(
-            relations, seed, config, device, cache, examples=examples, restarts=restarts,
+            relations, seed, config, device, cache, examples=settings.examples, restarts=settings.restarts,
             log=log if progress else None,
         )  # fmt: skip
         for m in (LANGEVIN, REFINED):
@@ -125,7 +187,7 @@ def _models(
     whole = None
     if WHOLE in chosen:
         t0 = time.perf_counter()
-        scenes = whole_scene_training(sizes, seed, relations)
+        scenes = whole_scene_training(list(settings.sizes), seed, relations)
         # no bar of its own, as for the relation models: the experiment's bar counts (seed, size) pairs
         whole = fit(scenes, config, seed=seed, progress=False, device=device, run=Run(cache=cache))
         seconds[WHOLE] += time.perf_counter() - t0
@@ -135,15 +197,7 @@ def _models(
 def _task(
     task: Task,
     log: Callable[[str], None],
-    chosen: list[str],
-    sizes: list[int],
-    problems: int,
-    tries: int,
-    pool: int,
-    relations: list[str],
-    examples: int,
-    restarts: int,
-    config: TrainConfig,
+    settings: RelationSettings,
     progress: bool,
     device: Any,
     cache: Any,
@@ -151,12 +205,13 @@ def _task(
     """One seed and size of :func:`run`: per method, ``solved_<N>`` and ``seconds_<N>`` (per problem),
     and the method's seconds in all (getting its models included)."""
     seed, n = task.seed, int(json.loads(task.config)["size"])
-    told = progress and n == sizes[0]  # the models' restarts are told once per seed, not once per size
-    models, whole, seconds = _models(
-        chosen, sizes, seed, relations, examples, restarts, config, told, log, device, cache
-    )
+    chosen, problems = settings.chosen(), settings.problems
+    # the models' restarts are told once per seed, not once per size
+    told = progress and n == list(settings.sizes)[0]
+    models, whole, seconds = _models(settings, seed, told, log, device, cache)
     solved = dict.fromkeys(chosen, 0)
     spent = dict.fromkeys(chosen, 0.0)
+    relations, tries, pool = list(settings.relations), settings.tries, settings.pool
     for k, prob in enumerate(relation_problems(n, problems, seed, relations)):
         for m, (ok, dt) in solve_one(prob, models, whole, chosen, tries, pool, 1000 * n + k).items():
             solved[m] += int(ok)
@@ -169,88 +224,50 @@ def _task(
     return figures, seconds
 
 
-def run(
-    seeds: int = 3,
-    sizes: Sequence[int] = SIZES,
-    problems: int = 100,
-    tries: int = 10,
-    pool: int = POOL,
-    methods: list[str] | None = None,
-    relations: Sequence[str] = PROBLEM_RELATIONS,
-    examples: int = EXAMPLES,
-    restarts: int = RESTARTS,
-    config: TrainConfig | None = None,
-    progress: bool = True,
-    log: Callable[[str], None] = print,
-    device: Any = None,
-    jobs: int = 1,
-    cache: Any = None,
-    sweep: Sweep | None = None,
-) -> RelationsResult:
-    """The experiment over seeds ``0 .. seeds-1``, each its own relation models and problems: the fraction
-    of ``problems`` problems of each size in ``sizes`` that each method solves within ``tries``, each try
-    the best of ``pool`` particles.
-    ``relations``: those the problems draw from (each one model, trained on ``examples`` example
-    scenes, and again at most ``restarts`` times while its edge is flat); ``config``: their training
-    (default :func:`train_config`); ``jobs > 1``: the tasks (one per seed and size) in that many worker
-    processes (the figures do not depend on it); ``cache``: the model cache folder (default: one for the
-    run alone); ``sweep``: where each task's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
-    chosen = methods or list(METHODS)
-    unknown = [m for m in chosen if m not in METHODS]
+def _check(seeds: int, settings: RelationSettings) -> None:
+    """Refuse an unknown method and a count out of range, before any task starts."""
+    unknown = [m for m in settings.chosen() if m not in METHODS]
     if unknown:
         raise SceneError(f"unknown method(s) {unknown}; choose from {METHODS}")
-    if min(tries, problems, seeds, examples, pool) < 1 or restarts < 0:
+    s = settings
+    if min(s.tries, s.problems, seeds, s.examples, s.pool) < 1 or s.restarts < 0:
         raise SceneError(
             "relations: seeds, problems, tries, pool and examples must be at least 1 and restarts at least 0, "
-            f"got {seeds}, {problems}, {tries}, {pool}, {examples}, {restarts}"
+            f"got {seeds}, {s.problems}, {s.tries}, {s.pool}, {s.examples}, {s.restarts}"
         )
-    res = RelationsResult(
-        sizes=list(sizes),
-        problems=problems,
-        tries=tries,
-        pool=pool,
-        relations=list(relations),
-        examples=examples,
-        restarts=restarts,
-    )
-    one = partial(
-        _task,
-        chosen=chosen,
-        sizes=list(sizes),
-        problems=problems,
-        tries=tries,
-        pool=pool,
-        relations=list(relations),
-        examples=examples,
-        restarts=restarts,
-        config=config or train_config(),
-        progress=progress,
-        device=device,
-    )
-    settings = {
-        "methods": chosen,
-        "problems": problems,
-        "tries": tries,
-        "pool": pool,
-        "relations": list(relations),
-        "examples": examples,
-        "restarts": restarts,
-        "training": config or train_config(),
-        "device": str(device),
-    }  # every setting a task's record depends on
-    if WHOLE in chosen:
-        settings["sizes"] = list(sizes)  # the whole-scene model trains on every size's arrangements
+
+
+def run(
+    seeds: int = 3,
+    settings: RelationSettings | None = None,
+    *,
+    execution: Execution | None = None,
+) -> RelationsResult:
+    """The experiment over seeds ``0 .. seeds-1``, each its own relation models and problems: the fraction
+    of ``settings.problems`` problems of each size in ``settings.sizes`` that each method solves within
+    ``settings.tries``, each try the best of ``settings.pool`` particles (default
+    :class:`RelationSettings`'s). ``execution``: where and how (default :class:`Execution`'s); its
+    ``jobs > 1``: the tasks (one per seed and size) in that many worker processes (the figures do not
+    depend on it); its ``cache``: the model cache folder (default: one for the run alone); its
+    ``sweep``: where each task's record is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
+    s = settings or RelationSettings()
+    ex = execution or Execution()
+    _check(seeds, s)
+    chosen = s.chosen()
+    res = RelationsResult.of(s)
+    one = partial(_task, settings=s, progress=ex.progress, device=ex.device)
+    config = s.record_config(ex.device)  # every setting a task's record depends on
     # one task per size and seed, the seeds of a size side by side: the workers stay busy to the end,
     # and the first tasks of a run train different seeds' models, which the later ones read from the cache
     tasks = [
-        Task.of("relations", seed=seed, scenario=f"{n} objects", config={**settings, "size": n})
-        for n in sizes
+        Task.of("relations", seed=seed, scenario=f"{n} objects", config={**config, "size": n})
+        for n in s.sizes
         for seed in range(seeds)
     ]
     res.per_seed = {m: [{} for _ in range(seeds)] for m in chosen}
-    bar = "relations (seed, size)" if progress else None
-    with run_cache(cache) as folder:  # every task of a seed needs its models: the first to ask trains them
-        records = run_tasks(partial(one, cache=folder), tasks, jobs, log, bar, sweep)
+    bar = "relations (seed, size)" if ex.progress else None
+    with run_cache(ex.cache) as folder:  # every task of a seed needs its models: the first to ask trains them
+        records = run_tasks(partial(one, cache=folder), tasks, ex.jobs, ex.log, bar, ex.sweep)
     for task, (figures, seconds) in zip(tasks, records):
         for m in chosen:
             res.per_seed[m][task.seed].update(figures[m])  # the sizes in order: the tasks are size-major

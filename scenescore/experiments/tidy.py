@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from typing import Any, cast
 
@@ -36,9 +36,10 @@ from ..planning.tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_m
 from ..scenarios import get
 from ..scene.scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
+from .execution import Execution
 from .messy import SIZES, MessyCase, accepts, displaceable, messy_cases
 from .report import Row, format_table
-from .tasks import Codec, Sweep, Task, run_tasks
+from .tasks import Codec, Task, run_tasks
 
 __all__ = [
     "SCENARIOS",
@@ -186,40 +187,34 @@ def run(
     seeds: Sequence[int] = (0,),
     config: TrainConfig | None = None,
     sizes: tuple[float, ...] = SIZES,
-    log: Callable[[str], None] = print,
-    progress: bool = False,
     options: TidyOptions | None = None,
     place_options: LangevinOptions | None = None,
-    device: Any = None,
-    jobs: int = 1,
-    cache: Any = None,
-    sweep: Sweep | None = None,
+    *,
+    execution: Execution | None = None,
 ) -> TidyRun:
-    """Train per scenario and seed of ``seeds`` (on ``device``; each seed its own split, model and
-    displacements), make the messy cases, run every method on them (``options``: tidy's,
-    ``place_options``: the baselines' placement; defaults: the library's); the cases of every seed are
-    pooled. ``jobs > 1`` runs the scenario and seed pairs in that many worker processes of one thread
-    each (the figures do not depend on it; each method's seconds are then summed over the workers).
-    ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``sweep``: where each pair's record
-    is kept, to resume from (:mod:`scenescore.experiments.tasks`)."""
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise SceneError(f"tidy experiment: jobs must be a whole number >= 1, got {jobs!r}")
+    """Train per scenario and seed of ``seeds`` (each seed its own split, model and displacements), make
+    the messy cases, run every method on them (``options``: tidy's, ``place_options``: the baselines'
+    placement; defaults: the library's); the cases of every seed are pooled. ``execution``: where and
+    how (default ``Execution(progress=False)``): the models train on its ``device``; ``jobs > 1`` runs
+    the scenario and seed pairs in that many worker processes of one thread each (the figures do not
+    depend on it; each method's seconds are then summed over the workers); its ``sweep`` keeps each
+    pair's record, to resume from (:mod:`scenescore.experiments.tasks`)."""
+    ex = execution or Execution(progress=False)
     seeds = list(seeds)
     if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
         raise SceneError(f"tidy experiment: seeds must be one or more whole numbers >= 0, got {seeds!r}")
     for name in scenarios:
         get(name)  # an unknown name fails here, before any worker starts
     one = partial(
-        run_scenario,
+        _scenario,
         efforts=tuple(efforts),
         test_scenes=test_scenes,
         config=config,
         sizes=tuple(sizes),
         options=options,
         place_options=place_options,
-        device=device,
-        progress=progress and jobs == 1,
-        cache=cache,
+        # what a worker needs of the execution: the log is its own, the tasks' records are kept here
+        execution=Execution(progress=ex.progress and ex.jobs == 1, device=ex.device, cache=ex.cache),
     )
     settings = {
         "efforts": list(efforts),
@@ -228,11 +223,12 @@ def run(
         "sizes": list(sizes),
         "options": options,
         "place_options": place_options,
-        "device": str(device),
+        "device": str(ex.device),
     }  # every setting a pair's record depends on beyond its scenario and seed
     units = [Task.of("tidy", scenario=name, seed=s, config=settings) for name in scenarios for s in seeds]
     codec = Codec(TidyRun.to_dict, TidyRun.from_dict)
-    parts = run_tasks(one, units, jobs, log, "tidy" if progress else None, sweep, codec)
+    bar = "tidy" if ex.progress else None
+    parts = run_tasks(one, units, ex.jobs, ex.log, bar, ex.sweep, codec)
     res = TidyRun(efforts=tuple(efforts))
     for part in parts:  # in the order asked, whatever order the workers finished in
         res.cases += part.cases
@@ -240,6 +236,22 @@ def run(
             res.outcomes.setdefault(m, []).extend(got)
             res.seconds[m] = res.seconds.get(m, 0.0) + part.seconds[m]
     return res
+
+
+def _scenario(
+    unit: Task,
+    log: Callable[[str], None],
+    efforts: tuple[float, ...],
+    test_scenes: int,
+    config: TrainConfig | None,
+    sizes: tuple[float, ...],
+    options: TidyOptions | None,
+    place_options: LangevinOptions | None,
+    execution: Execution,
+) -> TidyRun:
+    """:func:`run_scenario` as a task of :func:`run`, its lines to the task's ``log``."""
+    ex = replace(execution, log=log)
+    return run_scenario(unit, efforts, test_scenes, config, sizes, options, place_options, execution=ex)
 
 
 def run_scenario(
@@ -250,12 +262,13 @@ def run_scenario(
     sizes: tuple[float, ...],
     options: TidyOptions | None,
     place_options: LangevinOptions | None,
-    device: Any,
-    log: Callable[[str], None] = print,
-    progress: bool = False,
-    cache: Any = None,
+    *,
+    execution: Execution | None = None,
 ) -> TidyRun:
-    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds."""
+    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds.
+    ``execution``: where and how (default ``Execution(progress=False)``; its ``jobs`` and ``sweep`` are
+    :func:`run`'s, unused here)."""
+    ex = execution or Execution(progress=False)
     name, seed = (unit.scenario, unit.seed) if isinstance(unit, Task) else unit
     res = TidyRun(efforts=tuple(efforts))
     methods = [method_name(e) for e in efforts] + ["re-place all", "missing placement"]
@@ -266,7 +279,12 @@ def run_scenario(
     t0 = time.perf_counter()
     train_s, test_s = sc.split(seed)
     model = fit(
-        train_s, config or TrainConfig(), seed=seed, progress=progress, device=device, run=Run(cache=cache)
+        train_s,
+        config or TrainConfig(),
+        seed=seed,
+        progress=ex.progress,
+        device=ex.device,
+        run=Run(cache=ex.cache),
     )
     held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
     gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
@@ -274,7 +292,7 @@ def run_scenario(
     if not cases:
         raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
     took = time.perf_counter() - t0
-    log(f"{name} seed {seed}: trained in {took:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases")
+    ex.log(f"{name} seed {seed}: trained in {took:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases")
     res.cases += cases
     messy = [c.messy for c in cases]
     for e in efforts:
@@ -292,7 +310,24 @@ def run_scenario(
                 r.plan_made,
             )
             res.outcomes[method_name(e)].append(out)
-        log(f"{name} seed {seed}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+        ex.log(f"{name} seed {seed}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+    _baselines(res, name, sc, cases, model, place_options, seed, ex.log)
+    return res
+
+
+def _baselines(
+    res: TidyRun,
+    name: str,
+    sc: Any,
+    cases: list[MessyCase],
+    model: ScoreModel,
+    place_options: LangevinOptions | None,
+    seed: int,
+    log: Callable[[str], None],
+) -> None:
+    """The two baselines on ``cases`` (of scenario ``sc``, called ``name``), their outcomes and seconds
+    added to ``res``: every movable object placed from scratch (``re-place all``), and the displaced
+    ones alone (``missing placement``)."""
     t = time.perf_counter()
     blank = [c.messy.copy() for c in cases]
     for s in blank:
@@ -317,7 +352,6 @@ def run_scenario(
         _score(c, sc, p, _moved(c.messy, p), model, seed) for c, p in zip(cases, filled)
     ]
     log(f"{name} seed {seed}: baselines {time.perf_counter() - t:.0f} s")
-    return res
 
 
 COLUMNS = [

@@ -36,8 +36,9 @@ from ..scenarios.zoo import ROOMS, ZOO
 from ..scenarios.zoo.common import Pose
 from ..scene.scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
+from .execution import Execution
 from .report import Row, format_table
-from .tasks import Codec, Sweep, Task, run_tasks
+from .tasks import Codec, Task, run_tasks
 from .zoo_verdicts import (
     CATASTROPHIC_CM,
     CATASTROPHIC_ORACLE,
@@ -248,38 +249,34 @@ def _pair(
 def run(
     seeds: int = 3,
     scenarios: list[str] | None = None,
-    progress: bool = True,
-    log: Callable[[str], None] = print,
     config: TrainConfig | None = None,
-    jobs: int = 1,
     energy_only: bool = False,
-    device: Any = None,
     place: LangevinOptions | None = None,
     val: float = 0.0,
-    cache: Any = None,
     train_scenes: int | None = None,
-    sweep: Sweep | None = None,
+    *,
+    execution: Execution | None = None,
 ) -> ZooResult:
     """The zoo table over ``seeds`` seeds for ``scenarios`` (default every zoo scenario but the rooms,
-    whose training takes far longer; ``config``: the training settings; default the CLI's;
-    ``device``: where the models train and place; ``place``: placement options; ``val``: the validation
-    fraction held out of the training scenes; ``cache``: a model cache folder; ``train_scenes``: train
-    on that many of the 48 training scenes (12: the small-data variant); :func:`run_one`); ``sweep``:
-    where each pair's record is kept, to resume from (:mod:`scenescore.experiments.tasks`).
+    whose training takes far longer; ``config``: the training settings; default the CLI's; ``place``:
+    placement options; ``val``: the validation fraction held out of the training scenes;
+    ``train_scenes``: train on that many of the 48 training scenes (12: the small-data variant);
+    :func:`run_one`). ``execution``: where and how (default :class:`Execution`'s): the models train and
+    place on its ``device``, with its model ``cache``; its ``sweep`` keeps each pair's record, to
+    resume from (:mod:`scenescore.experiments.tasks`).
 
-    ``jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread each,
-    largest scenarios first; each pair's figures do not depend on ``jobs``.
+    ``execution.jobs > 1`` runs the (scenario, seed) pairs in that many worker processes of one thread
+    each, largest scenarios first; each pair's figures do not depend on ``jobs``.
     """
+    ex = execution or Execution()
     chosen = scenarios or [s for s in ZOO if s not in ROOMS]
     unknown = [s for s in chosen if s not in ZOO]
     if unknown:
         raise SceneError(f"unknown zoo scenario(s) {unknown}; choose from {list(ZOO)}")
-    if jobs < 1:
-        raise SceneError(f"zoo: jobs must be at least 1, got {jobs}")
     settings = {
         "training": config,
         "energy_only": energy_only,
-        "device": str(device),
+        "device": str(ex.device),
         "place": place,
         "val": val,
         "train_scenes": train_scenes,
@@ -287,24 +284,24 @@ def run(
     tasks = [
         Task.of("zoo", scenario=name, seed=seed, config=settings) for name in chosen for seed in range(seeds)
     ]
-    if jobs > 1:  # the largest graphs first, so the long pairs do not start last
+    if ex.jobs > 1:  # the largest graphs first, so the long pairs do not start last
         tasks.sort(key=lambda t: -get(t.scenario).counts[1])
     pair = partial(
         _pair,
         config=config,
-        progress=progress and jobs == 1,
+        progress=ex.progress and ex.jobs == 1,
         energy_only=energy_only,
-        device=device,
+        device=ex.device,
         place=place,
         val=val,
-        cache=cache,
+        cache=ex.cache,
         train_scenes=train_scenes,
     )
-    records = run_tasks(pair, tasks, jobs, log, "zoo" if progress else None, sweep, PAIR_RECORD)
+    bar = "zoo" if ex.progress else None
+    records = run_tasks(pair, tasks, ex.jobs, ex.log, bar, ex.sweep, PAIR_RECORD)
     done = {(t.scenario, t.seed): r for t, r in zip(tasks, records)}
     res = ZooResult()
     for name in chosen:
-        sc = get(name)
         res.per_case[name] = []
         for seed in range(seeds):
             one = done[(name, seed)]
@@ -313,16 +310,22 @@ def run(
             w = one["worst"]
             if w is not None and (name not in res.worst or w[2] > res.worst[name][2]):
                 res.worst[name] = w
-        scenes = sc.generate(16, 99)
-        sizes = np.array([o.size for s in scenes for o in s.objects])
-        (x0, y0), (x1, y1) = sc.bounds
-        lo, hi = sc.counts
-        res.info[name] = {
-            "bounds_m": f"{x1 - x0:g} x {y1 - y0:g}",
-            "sizes_cm": f"{100 * sizes.min():.1f}-{100 * sizes.max():.0f}",
-            "objects": f"{lo}-{hi}",
-        }
+        res.info[name] = _info(get(name))
     return res
+
+
+def _info(sc: Any) -> dict[str, str]:
+    """What the zoo table says of a scenario beside its errors: its bounds, its objects' sizes (over 16
+    scenes generated with seed 99) and how many objects a scene holds."""
+    scenes = sc.generate(16, 99)
+    sizes = np.array([o.size for s in scenes for o in s.objects])
+    (x0, y0), (x1, y1) = sc.bounds
+    lo, hi = sc.counts
+    return {
+        "bounds_m": f"{x1 - x0:g} x {y1 - y0:g}",
+        "sizes_cm": f"{100 * sizes.min():.1f}-{100 * sizes.max():.0f}",
+        "objects": f"{lo}-{hi}",
+    }
 
 
 def _encode_pair(one: dict[str, Any]) -> dict[str, Any]:

@@ -44,8 +44,10 @@ def test_unfitted_raises():
 
 def test_missing_experiment_has_neatnet_row():
     from scenescore.experiments import missing
+    from scenescore.experiments.execution import Execution
 
-    res = missing.run(seeds=1, methods=["NeatNet"], quick=True, progress=False, log=lambda s: None)
+    quiet = Execution(progress=False, log=lambda s: None)
+    res = missing.run(seeds=1, methods=["NeatNet"], quick=True, execution=quiet)
     (row,) = res.rows()
     assert row.method == "NeatNet" and row.paper["mean_t_cm"] == 21.7
     assert 0 < row.figures["mean_t_cm"] < 200 and 0 <= row.figures["mean_R_deg"] <= 180

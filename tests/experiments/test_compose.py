@@ -4,12 +4,15 @@ import pytest
 import torch
 
 from scenescore.experiments import compose
+from scenescore.experiments.execution import Execution
 
 
 @pytest.mark.slow
 def test_compose_quick_rows_and_plot(tmp_path):
     torch.set_num_threads(1)
-    res = compose.run(seeds=1, quick=True, progress=False, levels=[0, 1], samples=8, refine=1)
+    res = compose.run(
+        seeds=1, quick=True, levels=[0, 1], samples=8, refine=1, execution=Execution(progress=False)
+    )
     rows = {r.method: r.figures for r in res.rows()}
     assert set(rows) == set(compose.METHODS)
     for m, fig in rows.items():
@@ -30,12 +33,10 @@ def test_compose_quick_rows_and_plot(tmp_path):
 @pytest.mark.slow
 def test_compose_seeds_in_worker_processes_give_the_same_counts():
     torch.set_num_threads(1)
-    kw = dict(
-        seeds=2, methods=["SceneScore", "SceneScore (langevin>alm)"], quick=True, progress=False, levels=[1]
-    )
+    kw = dict(seeds=2, methods=["SceneScore", "SceneScore (langevin>alm)"], quick=True, levels=[1])
     kw.update(samples=8, refine=1)
-    one = compose.run(jobs=1, **kw)
-    two = compose.run(jobs=2, **kw)
+    one = compose.run(execution=Execution(progress=False, jobs=1), **kw)
+    two = compose.run(execution=Execution(progress=False, jobs=2), **kw)
     assert two.correct == one.correct and two.distinct == one.distinct
     assert len(two.correct["SceneScore"]) == 2  # one row of counts per seed, in seed order
 
@@ -43,8 +44,8 @@ def test_compose_seeds_in_worker_processes_give_the_same_counts():
 @pytest.mark.slow
 def test_the_refined_rows_alm_options_reach_it_and_its_words():
     torch.set_num_threads(1)
-    kw = dict(seeds=1, methods=["SceneScore (langevin>alm)"], quick=True, progress=False, levels=[1])
-    kw.update(samples=8, refine=1)
+    kw = dict(seeds=1, methods=["SceneScore (langevin>alm)"], quick=True, levels=[1])
+    kw.update(samples=8, refine=1, execution=Execution(progress=False))
     repair = compose.run(refine_options={"polish": False}, **kw)
     assert repair.refine_options == {"polish": False}
     assert '(alm options {"polish": false}: a repair' in compose.format_compose(repair)

@@ -8,6 +8,7 @@ import torch
 
 from scenescore.cli import main
 from scenescore.experiments import heatmap, novel
+from scenescore.experiments.execution import Execution
 from scenescore.experiments.tasks import Sweep
 from scenescore.learn import TrainConfig, fit
 from scenescore.planning.heatmap import energy_grid, grid_minimum
@@ -16,7 +17,11 @@ from scenescore.scenarios import DeskScenario
 
 def test_novel_oracle_row_is_near_zero():
     res = novel.run(
-        seeds=1, methods=["Oracle"], rules=("class_size", "unseen_class"), n_test=2, log=lambda s: None
+        seeds=1,
+        methods=["Oracle"],
+        rules=("class_size", "unseen_class"),
+        n_test=2,
+        execution=Execution(log=lambda s: None),
     )
     (row,) = res.rows()
     assert row.method == "Oracle"
@@ -30,7 +35,9 @@ def test_novel_oracle_row_is_near_zero():
 
 def test_novel_rejects_unknown_method():
     with pytest.raises(ValueError):
-        novel.run(seeds=1, methods=["Nope"], rules=("all_size",), n_test=1, log=lambda s: None)
+        novel.run(
+            seeds=1, methods=["Nope"], rules=("all_size",), n_test=1, execution=Execution(log=lambda s: None)
+        )
 
 
 def test_experiment_novel_cli_writes_results(tmp_path):
@@ -92,9 +99,10 @@ def test_heatmap_command(tmp_path, desk_model, capsys):
 def test_heatmap_run_quick(tmp_path):
     torch.manual_seed(0)
     lines: list[str] = []
-    kw = dict(seeds=1, quick=True, progress=False, out=tmp_path, resolution=0.05, n_train=4, iterations=3)
-    res = heatmap.run(log=lines.append, sweep=Sweep(tmp_path / "tasks"), **kw)
-    again = heatmap.run(log=lines.append, sweep=Sweep(tmp_path / "tasks"), **kw)  # the seed's record reused
+    kw = dict(seeds=1, quick=True, out=tmp_path, resolution=0.05, n_train=4, iterations=3)
+    ex = Execution(progress=False, log=lines.append, sweep=Sweep(tmp_path / "tasks"))
+    res = heatmap.run(execution=ex, **kw)
+    again = heatmap.run(execution=ex, **kw)  # the seed's record reused
     assert "heatmap: reused 1 of 1 tasks" in lines[-1] and again.per_seed == res.per_seed
     pen, pencil = res.rows()
     assert pen.method == "SceneScore, pen" and pencil.method == "SceneScore, pencil"
@@ -108,9 +116,12 @@ def test_heatmap_run_quick(tmp_path):
 def test_novel_and_missing_in_worker_processes_give_the_same_figures():
     from scenescore.experiments import missing
 
-    kw = dict(seeds=2, methods=["Oracle"], rules=("class_size", "all_size"), n_test=2, log=lambda s: None)
-    one, two = novel.run(jobs=1, **kw), novel.run(jobs=2, **kw)
+    kw = dict(seeds=2, methods=["Oracle"], rules=("class_size", "all_size"), n_test=2)
+    quiet = lambda s: None  # noqa: E731
+    one = novel.run(execution=Execution(log=quiet, jobs=1), **kw)
+    two = novel.run(execution=Execution(log=quiet, jobs=2), **kw)
     assert two.per_seed == one.per_seed and len(two.per_seed["Oracle"]) == 2
-    kw = dict(seeds=2, methods=["Nearest-Nbr", "Oracle"], progress=False, log=lambda s: None)
-    one, two = missing.run(jobs=1, **kw), missing.run(jobs=2, **kw)
+    kw = dict(seeds=2, methods=["Nearest-Nbr", "Oracle"])
+    one = missing.run(execution=Execution(progress=False, log=quiet, jobs=1), **kw)
+    two = missing.run(execution=Execution(progress=False, log=quiet, jobs=2), **kw)
     assert two.per_seed == one.per_seed and list(two.per_seed) == ["Nearest-Nbr", "Oracle"]

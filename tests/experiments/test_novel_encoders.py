@@ -7,6 +7,7 @@ import torch
 from scenescore.cli import main
 from scenescore.encoders import make_encoder
 from scenescore.experiments import novel
+from scenescore.experiments.execution import Execution
 from scenescore.vision.graph import graphs_from_renders
 
 
@@ -22,13 +23,12 @@ def test_novel_from_images_gives_one_scenescore_row_per_encoder():
         seeds=1,
         methods=["SceneScore", "Oracle"],
         quick=True,
-        progress=False,
-        log=lambda s: None,
         rules=("class_size",),
         n_test=1,
         n_train=3,
         encoders=[make_encoder("footprint"), make_encoder("image")],
         scenes_fn=scenes_fn,
+        execution=Execution(progress=False, log=lambda s: None),
     )
     rows = {r.method: r for r in res.rows()}
     assert list(rows) == ["SceneScore (footprint)", "SceneScore (image)", "Oracle"]

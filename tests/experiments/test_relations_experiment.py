@@ -11,7 +11,15 @@ import pytest
 import torch
 
 from scenescore.cli import main
-from scenescore.experiments.relations import METHODS, best_tries, relation_cost_problem, run, train_relations
+from scenescore.experiments.execution import Execution
+from scenescore.experiments.relations import (
+    METHODS,
+    RelationSettings,
+    best_tries,
+    relation_cost_problem,
+    run,
+    train_relations,
+)
 from scenescore.learn import TrainConfig
 from scenescore.scenarios.relation_problems import (
     PROBLEM_RELATIONS,
@@ -84,7 +92,7 @@ def test_bad_problem_requests_are_clear_errors():
     with pytest.raises(SceneError, match="centred_on"):
         relation_problem(3, 0, relations=("centred_on",))
     with pytest.raises(SceneError, match="pool"):
-        run(seeds=1, problems=1, pool=0)
+        run(seeds=1, settings=RelationSettings(problems=1, pool=0))
 
 
 def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
@@ -169,14 +177,16 @@ def test_each_seed_and_size_is_a_task_and_a_seeds_models_are_trained_once(tmp_pa
     lines: list[str] = []
     settings = dict(
         problems=1, tries=1, pool=2, methods=["Relations (langevin>alm)"], relations=["left_of", "near"],
-        examples=8, restarts=0, config=TrainConfig(iterations=2), progress=False, log=lines.append,
+        examples=8, restarts=0, config=TrainConfig(iterations=2),
     )  # fmt: skip
-    both = run(seeds=2, sizes=[2, 3], sweep=Sweep(tmp_path / "tasks"), **settings)
+    ex = Execution(progress=False, log=lines.append, sweep=Sweep(tmp_path / "tasks"))
+    both = run(seeds=2, settings=RelationSettings(sizes=[2, 3], **settings), execution=ex)
     assert len(fits) == 4  # two relations for each of two seeds, whatever the sizes: the run's own cache
     assert lines[-1] == "relations: reused 0 of 4 tasks (" + str(tmp_path / "tasks") + ")"
     (per_seed,) = both.per_seed.values()
     assert [list(f) for f in per_seed] == [["solved_2", "seconds_2", "solved_3", "seconds_3"]] * 2
-    three = run(seeds=2, sizes=[3], sweep=Sweep(tmp_path / "tasks"), **settings)  # a run split by size
+    # a run split by size
+    three = run(seeds=2, settings=RelationSettings(sizes=[3], **settings), execution=ex)
     assert lines[-1].startswith("relations: reused 2 of 2 tasks") and len(fits) == 4
     assert [f["solved_3"] for f in three.per_seed["Relations (langevin>alm)"]] == [
         f["solved_3"] for f in per_seed

@@ -13,6 +13,7 @@ from scenescore.cli import main
 from scenescore.evaluation.cases import MissingCase
 from scenescore.experiments import missing, zoo
 from scenescore.experiments import tidy as T
+from scenescore.experiments.execution import Execution
 from scenescore.experiments.tasks import Task
 from scenescore.learn import TrainConfig
 from scenescore.planning.tidying import TidyOptions
@@ -68,7 +69,8 @@ def test_an_interrupted_run_resumes_with_only_the_missing_tasks_and_the_same_tab
     assert (cut / "table.md").read_text() == (whole / "table.md").read_text()
     assert _rows(cut) == _rows(whole)
     # the same figures as a run that keeps no records (the tasks change no random stream)
-    plain = missing.run(seeds=3, methods=["Nearest-Nbr", "Oracle"], progress=False, log=lambda s: None)
+    quiet = Execution(progress=False, log=lambda s: None)
+    plain = missing.run(seeds=3, methods=["Nearest-Nbr", "Oracle"], execution=quiet)
     assert missing.format_missing(plain) in (whole / "table.md").read_text()
 
 
@@ -122,8 +124,7 @@ def test_tidy_and_zoo_records_come_back_from_json_whole():
         sizes=(0.4,),
         options=TidyOptions(propose=TINY, refine_options={"max_iter": 2}),
         place_options=TINY,
-        device=None,
-        log=lambda s: None,
+        execution=Execution(progress=False, device=None, log=lambda s: None),
     )
     back = T.TidyRun.from_dict(_json(part.to_dict()))
     assert back.cases == part.cases and back.outcomes == part.outcomes and back.seconds == part.seconds

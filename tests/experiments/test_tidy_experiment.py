@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from scenescore.experiments import tidy as T
+from scenescore.experiments.execution import Execution
 from scenescore.learn import TrainConfig
 from scenescore.planning.tidying import TidyOptions
 from scenescore.scenarios import get
@@ -35,9 +36,9 @@ def test_run_reports_every_method_and_draws_the_chart(tmp_path):
         test_scenes=1,
         config=TrainConfig(iterations=2, batch_scenes=4),
         sizes=(0.4,),
-        log=lambda s: None,
         options=opts,
         place_options=tiny,
+        execution=Execution(progress=False, log=lambda s: None),
     )
     methods = [r.method for r in res.rows()]
     assert methods == ["tidy (effort 1) default", "re-place all", "missing placement"]
@@ -73,16 +74,16 @@ def test_worker_processes_give_the_same_outcomes_in_the_order_asked():
         test_scenes=1,
         config=TrainConfig(iterations=2, batch_scenes=4),
         sizes=(0.4,),
-        log=lambda s: None,
         options=TidyOptions(propose=tiny, refine_options={"max_iter": 2}),
         place_options=tiny,
     )
-    one = T.run(("desk", "tv"), jobs=1, **kw)
-    two = T.run(("desk", "tv"), jobs=2, **kw)
+    quiet = Execution(progress=False, log=lambda s: None)
+    one = T.run(("desk", "tv"), execution=replace(quiet, jobs=1), **kw)
+    two = T.run(("desk", "tv"), execution=replace(quiet, jobs=2), **kw)
     assert [c.scenario for c in two.cases] == [c.scenario for c in one.cases]
     assert two.outcomes == one.outcomes
     with pytest.raises(SceneError, match="jobs must be a whole number >= 1"):
-        T.run(("desk",), jobs=0, **kw)
+        T.run(("desk",), execution=replace(quiet, jobs=0), **kw)
     for bad in ((), (-1,), (0.5,)):
         with pytest.raises(SceneError, match="seeds must be one or more whole numbers >= 0"):
-            T.run(("desk",), seeds=bad, **kw)
+            T.run(("desk",), seeds=bad, execution=quiet, **kw)

@@ -1,25 +1,25 @@
 """The zoo experiment at tiny sizes: its table, and worker processes that change nothing."""
 
+from dataclasses import replace
+
 import pytest
 
 from scenescore.experiments import zoo
+from scenescore.experiments.execution import Execution
 from scenescore.learn import TrainConfig
 from scenescore.scene.scene import SceneError
 
 TINY = TrainConfig(iterations=3, batch_scenes=4, negatives=2)
+QUIET = Execution(progress=False, log=lambda s: None)
 
 
 def test_zoo_in_workers_equals_one_process():
-    one = zoo.run(
-        seeds=1, scenarios=["zoo-cascade", "zoo-hall"], progress=False, log=lambda s: None, config=TINY
-    )
+    one = zoo.run(seeds=1, scenarios=["zoo-cascade", "zoo-hall"], config=TINY, execution=QUIET)
     two = zoo.run(
         seeds=1,
         scenarios=["zoo-cascade", "zoo-hall"],
-        progress=False,
-        log=lambda s: None,
         config=TINY,
-        jobs=2,
+        execution=replace(QUIET, jobs=2),
     )
     assert list(one.per_case) == list(two.per_case) == ["zoo-cascade", "zoo-hall"]
     for name in one.per_case:
@@ -34,21 +34,20 @@ def test_zoo_in_workers_equals_one_process():
 
 def test_zoo_rejects_unknown_scenario_and_bad_jobs():
     with pytest.raises(SceneError, match="zoo-nope"):
-        zoo.run(seeds=1, scenarios=["zoo-nope"], log=lambda s: None)
+        zoo.run(seeds=1, scenarios=["zoo-nope"], execution=Execution(log=lambda s: None))
     with pytest.raises(SceneError, match="jobs"):
-        zoo.run(seeds=1, scenarios=["zoo-hall"], log=lambda s: None, jobs=0)
+        zoo.run(seeds=1, scenarios=["zoo-hall"], execution=Execution(log=lambda s: None, jobs=0))
 
 
 def test_zoo_place_options_reach_every_worker():
     """Placement options given to the zoo replace PLACE's, in one process and in workers alike."""
-    from dataclasses import replace
-
     from scenescore.planning.placement import PLACE
 
-    kw = dict(seeds=1, scenarios=["zoo-hall"], progress=False, log=lambda s: None, config=TINY)
-    plain = zoo.run(**kw)
+    kw = dict(seeds=1, scenarios=["zoo-hall"], config=TINY)
+    plain = zoo.run(**kw, execution=QUIET)
     off = replace(PLACE, proposals=0.0)
-    one, two = zoo.run(**kw, place=off), zoo.run(**kw, place=off, jobs=2)
+    one = zoo.run(**kw, place=off, execution=QUIET)
+    two = zoo.run(**kw, place=off, execution=replace(QUIET, jobs=2))
 
     def poses(r: zoo.ZooResult) -> list[float]:
         return [x for c in r.per_case["zoo-hall"] for x in c["pose"]]
@@ -87,8 +86,6 @@ def test_zoo_room_run_scores_each_chair_by_assignment():
     """A smoke run on zoo-classroom (a few training steps, a tiny placement): one record per missing
     chair, each matched to a distinct placed chair of its scene, the oracle a few centimetres off, the
     worst placement the one drawn; a room is named like any scenario."""
-    from dataclasses import replace
-
     from scenescore.planning.placement import PLACE
 
     tiny_place = replace(PLACE, particles=2, candidates=0, proposals=0.0, chain=replace(PLACE.chain, steps=3))
@@ -105,7 +102,7 @@ def test_zoo_room_run_scores_each_chair_by_assignment():
     case, placed, t = one["worst"]
     assert t == max(r["t_cm"] for r in recs) and placed[case.name].pose is not None
     with pytest.raises(SceneError, match="zoo-nope"):  # the rooms are named, like any scenario
-        zoo.run(seeds=1, scenarios=["zoo-classroom", "zoo-nope"], log=lambda s: None)
+        zoo.run(seeds=1, scenarios=["zoo-classroom", "zoo-nope"], execution=Execution(log=lambda s: None))
 
 
 def test_zoo_small_data_variant_trains_on_fewer_scenes_and_places_the_same_cases(monkeypatch):
@@ -121,7 +118,7 @@ def test_zoo_small_data_variant_trains_on_fewer_scenes_and_places_the_same_cases
         return real(scenes, *args, **kwargs)
 
     monkeypatch.setattr(zoo_module, "fit", counting)
-    kw = dict(seeds=1, scenarios=["zoo-hall"], progress=False, log=lambda s: None, config=TINY)
+    kw = dict(seeds=1, scenarios=["zoo-hall"], config=TINY, execution=QUIET)
     full, small = zoo.run(**kw), zoo.run(**kw, train_scenes=12)
     assert seen == [48, 12]
     assert [c["truth"] for c in full.per_case["zoo-hall"]] == [c["truth"] for c in small.per_case["zoo-hall"]]
