@@ -85,7 +85,10 @@ def test_the_cli_saves_the_model_the_library_returns(tmp_path, capsys):
     assert len(trained) == 1 and trained[0].split(" s ")[1] in printed
     assert [s for s in lines[1:] if "when the model first tidies" in s][0] in printed
     report = json.loads((tmp_path / "train_report.json").read_text())
-    assert report["tidy"] == {"scenes": 6, "seed": 1, "measured": False} and report["validation"] == model.info.validation
+    assert (
+        report["tidy"] == {"scenes": 6, "seed": 1, "measured": False}
+        and report["validation"] == model.info.validation
+    )
 
 
 def test_given_held_out_scenes_are_validated_on_and_every_scene_trained_on(tmp_path, capsys):

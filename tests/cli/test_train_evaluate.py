@@ -37,7 +37,11 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
     val = report["validation"]
     assert val["scenes"] == 4 and val["placements"] == 32 and val["baseline"] == "Nearest-Nbr"
     assert {c["category"] for c in val["categories"]} == {"plate", "fork", "knife", "bowl"}
-    assert report["tidy"] == {"scenes": 4, "seed": 0, "measured": False}  # the held-out scenes, measured at the first tidy
+    assert report["tidy"] == {
+        "scenes": 4,
+        "seed": 0,
+        "measured": False,
+    }  # the held-out scenes, measured at the first tidy
     assert "tidy: what a move must gain is measured on 4 held-out scenes when the model first tidies" in out
     assert (tmp_path / "t.png").stat().st_size > 0
     held = tmp_path / "m.val.jsonl"
