@@ -21,7 +21,7 @@ thresholds, no collision by the exact check, inside the room).
   not the default's 0.01: polished to the minimum, the samples of one basin merge into one
   arrangement); the same ``samples`` budget, real counts; its time is the Langevin time plus the
   refinement's.
-- SceneScore (langevin>osqp), (langevin>casadi): per-solve refinements (~0.5 s a solve), so only the
+- SceneScore (langevin>osqp), (langevin>casadi): per-solve refinements (one solve per sample), so only the
   first ``refine`` Langevin samples of each scene are refined, one solve each. They are not rows of
   the main table: a separate one gives their correct and distinct counts among the samples they
   refined (real counts of that smaller number, never scaled up).
@@ -117,9 +117,9 @@ def train_energy(
 ) -> ScoreModel:
     """The experiment's energy, trained on ``scenes`` (on ``device``): every counter-example chain moves
     every object, as the sampler does here; the library's default network (its edge encoder and noise
-    on every node input). Without the encoder (``RAW_EDGES``, the network Fig. 4 was first measured
-    with) seed 1's samples spread beyond the alignment tolerance: 2440 to 4459 correct of 5000 per
-    level, against 4649 to 5000 with it. ``cache``: a model cache folder (:mod:`scenescore.learn.cache`)."""
+    on every node input: without the encoder the samples spread beyond the alignment tolerance;
+    docs/studies.md, "Behind the defaults"). ``cache``: a model cache folder
+    (:mod:`scenescore.learn.cache`)."""
     return fit(scenes, train_config(quick), seed=seed, progress=progress, device=device, run=Run(cache=cache))
 
 
@@ -144,8 +144,8 @@ def tv_problem(scene: Scene, model: ScoreModel) -> Problem:
 
 def langevin_options(particles: int) -> dict[str, float]:
     """The ``langevin`` stage's options: ``particles`` per scene, a population resampled three times, the
-    sampler's own 100 steps (with 60, one population of seed 2's energy at 4 clutter boxes stayed a
-    third in a wrong basin: 648 of 1000 correct, 999 with 120 steps; ``studies/compose_basins.py``)."""
+    sampler's own 100 steps (fewer leave a population in a wrong basin; docs/studies.md, "Behind the
+    defaults")."""
     return {"particles": particles, "steps": 100, "resample": 3, "temperature": 1.0}
 
 

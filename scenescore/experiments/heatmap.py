@@ -4,7 +4,7 @@ Train SceneScore on desk scenes (book, pen, mug; the farther the pen, the farthe
 pen distances, evaluate the energy on a grid of mug positions (the mug is a disk: its heading is
 irrelevant), draw it as a heatmap, and find its minimum. Quantified: the error, in cm, between the
 book-to-minimum distance and the true relation's; then with a pencil (never trained on) in the pen's
-place, the distance in cm between the pencil's minimum and the pen's (the issue asks <= 3 cm).
+place, the distance in cm between the pencil's minimum and the pen's.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ move one of its objects a little besides the Langevin ones; a relation that read
 can face something too.
 
 A training run can end with a flat edge: the energy barely rises when the subject leaves the relation's
-region (at 600 iterations, ``aligned_y`` more often than not; docs/studies.md, "Composing relations").
+region (``aligned_y`` most often; docs/studies.md, "Composing relations").
 In a sum of many energies such a relation is the first to give way, and sampling many particles and
 keeping the best cannot tell. So each model is judged on :data:`VALIDATION` further examples of its
 training stream, never trained on (:func:`edge`: the subject moved :data:`EDGE_MOVE` in

@@ -1,4 +1,4 @@
-"""Composing learned relations (issue 40, Diffusion-CCSP's protocol): one energy per relation, summed.
+"""Composing learned relations (after Diffusion-CCSP's protocol): one energy per relation, summed.
 
 Each relation of :data:`~scenescore.scenarios.relation_problems.PROBLEM_RELATIONS` gets one model,
 trained on its own examples (``relation-<name>``: 2 or 3 objects each, the seed's training split).

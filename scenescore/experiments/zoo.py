@@ -181,9 +181,8 @@ def run_one(
     the learned energy alone, the paper's protocol; ``place``: placement options instead of
     :data:`~scenescore.planning.placement.PLACE`, their candidates covering the bounds as PLACE's do), on
     ``device``; ``val``: the fraction of the training scenes held out for validation, as ``scenescore
-    train --val`` (default none: the 48 training scenes are the trust reference; holding out train's
-    15% left two zoo-bedroom nightstands 84 and 93 cm off, where training on all 48 left none over
-    25 cm); ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``train_scenes``: train on
+    train --val`` (default none: the training scenes are the trust reference, and every one of them is
+    trained on, which a table top's worst placements need); ``cache``: a model cache folder (:mod:`scenescore.learn.cache`); ``train_scenes``: train on
     the first that many of the split's training scenes (the small-data variant; the test scenes are the
     same); ``{"cases", "worst", "seconds"}``."""
     t0 = time.perf_counter()
