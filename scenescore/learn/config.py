@@ -3,6 +3,8 @@ place where the settings the data decides are worked out (:func:`derive`)."""
 
 from __future__ import annotations
 
+import importlib.util
+import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from types import MappingProxyType
@@ -26,9 +28,18 @@ __all__ = [
     "LR_DENSE",
     "LR_LOCAL",
     "Graph",
+    "Compile",
+    "COMPILE_FROM",
+    "compiles",
+    "training_work",
 ]
 
 Graph = Literal["auto", "dense", "local"]
+Compile = Literal["auto", "on", "off"]
+#: the training work (edge evaluations: pose sets x objects x the objects each reads, over the chains'
+#: steps and the loss's passes) from which ``compile="auto"`` compiles: below it the cold compile costs
+#: more than the compiled passes save (``benchmarks/bench_training.py`` measures both)
+COMPILE_FROM = 1.5e8
 #: ``graph="auto"`` gives data whose largest scene has more objects than this (walls included) a local
 #: graph: from here a scene's cost grows with its objects, not their square, and every table top keeps
 #: the dense graph (``benchmarks/bench_rooms.py`` times both)
@@ -139,6 +150,12 @@ class TrainConfig:
     # placed object, its placement is flagged (scenescore.models.ensemble). Training takes members times
     # as long
     members: int = 1
+    # the network's passes compiled while it trains (torch.compile; scenescore.models.compiled): "on",
+    # "off" (eager), or "auto": when the training's work is large enough (COMPILE_FROM) that compiling
+    # pays for itself on a machine whose compiled-kernel cache is empty, and a compiler is there. The
+    # two train the same function to float rounding, not the same weights: a seed names a model in
+    # one mode
+    compile: Compile = "auto"
 
     def __post_init__(self) -> None:
         if isinstance(self.chain, dict):
@@ -153,6 +170,8 @@ class TrainConfig:
         check_number(own, "reanchored", self.reanchored, 0, 100_000, integer=True)
         check_number(own, "neighbours", self.neighbours, 1, 1024, integer=True)
         check_number(own, "members", self.members, 1, MAX_MEMBERS, integer=True)
+        if self.compile not in get_args(Compile):
+            raise ConfigError(f"{own}: compile: expected 'auto', 'on' or 'off', got {self.compile!r}")
         if self.graph not in get_args(Graph):
             raise ConfigError(f"{own}: graph: expected 'auto', 'dense' or 'local', got {self.graph!r}")
         if self.edge_encoder is not None:
@@ -212,6 +231,7 @@ class Derived:
     decay: float  # the moving average's decay (0: the last iterate)
     candidates: int  # what InfoNCE tells each true scene apart from, the scene itself included
     lr: float  # the learning rate: the setting, else the graph's (LR_DENSE, LR_LOCAL)
+    work: float  # edge evaluations over the whole training (see COMPILE_FROM)
 
 
 def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = None) -> Derived:
@@ -257,4 +277,40 @@ def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = 
         decay=max(min(cfg.average, 1 - 3 / max(cfg.iterations - averaged_from, 1)), 0.0),
         candidates=cfg.negatives + cfg.perturbed + cfg.reanchored + 1,
         lr=cfg.lr if cfg.lr is not None else (LR_LOCAL if local else LR_DENSE),
+        work=training_work(cfg, scenes, energy),
     )
+
+
+def training_work(cfg: TrainConfig, scenes: Sequence[Scene], energy: EnergyConfig) -> float:
+    """Edge evaluations a training of ``cfg`` on ``scenes`` makes: each iteration's chains (``batch x
+    negatives`` pose sets, ``chain_steps`` times) and loss (``batch`` x every candidate), each pose set
+    of a scene of ``n`` objects ``n`` times the nodes each reads (every one, dense; its neighbours and
+    the walls, local), at the scenes' mean."""
+    walls = WALLS if energy.walls else 0
+    reads = [
+        (len(s) + walls)
+        * (len(s) + walls if energy.neighbours is None else min(len(s) + walls, energy.neighbours + walls))
+        for s in scenes
+    ]
+    batch = min(cfg.batch_scenes, len(scenes))
+    rows = batch * (cfg.negatives * cfg.chain_steps + cfg.negatives + cfg.perturbed + cfg.reanchored + 1)
+    return float(cfg.iterations * rows * sum(reads) / len(reads))
+
+
+def compiles(cfg: TrainConfig, d: Derived, device_type: str) -> bool:
+    """Whether a training of ``cfg`` (derived as ``d``) runs its network compiled on a device of
+    ``device_type``: ``compile`` on or off as set; ``"auto"``: from :data:`COMPILE_FROM` edge
+    evaluations, where a compiler for the device is installed (a C++ compiler for the CPU, Triton for
+    CUDA)."""
+    if cfg.compile != "auto":
+        return cfg.compile == "on"
+    return d.work >= COMPILE_FROM and compiler_available(device_type)
+
+
+def compiler_available(device_type: str) -> bool:
+    """Whether torch.compile can build kernels for ``device_type`` here."""
+    if device_type == "cuda":
+        return importlib.util.find_spec("triton") is not None
+    if device_type == "cpu":
+        return any(shutil.which(cc) for cc in ("c++", "g++", "clang++"))
+    return False

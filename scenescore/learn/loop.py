@@ -23,12 +23,13 @@ from tqdm.auto import tqdm
 
 from ..encoders import Encoder
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
+from ..models.compiled import compiling
 from ..models.trust import reference
 from ..runtime.devices import draw, generator, resolve_device
 from ..runtime.threads import torch_threads
 from ..scene.scene import Scene
 from .cache import cached_path
-from .config import Derived, TrainConfig, derive
+from .config import Derived, TrainConfig, compiles, derive
 from .data import check_training_data
 from .logs import summary_writer
 from .losses import ABSENT, training_loss
@@ -139,22 +140,24 @@ def _fit(
     key = state_key(scenes, cfg, d.encoder, seed, device)
     done = read_state(state, key, t) if resume and state is not None else Progress()
     t0 = time.perf_counter() - done.seconds
+    compiled = compiles(cfg, d, device.type)
     bar = tqdm(
         range(done.iteration, cfg.iterations),
         initial=done.iteration,
         total=cfg.iterations,
-        desc="train",
+        desc="train (compiled)" if compiled else "train",
         disable=not progress,
         unit="it",
         dynamic_ncols=True,
     )
-    for it in bar:
-        _iterate(t, cfg, d, data, done, writer, it)
-        done.iteration, done.seconds = it + 1, time.perf_counter() - t0
-        if state is not None and (done.iteration % save_every == 0 or done.iteration == cfg.iterations):
-            write_state(state, key, done, t)
-        if it % 20 == 0:
-            bar.set_postfix(loss=f"{sum(done.history[-20:]) / len(done.history[-20:]):.3f}")
+    with compiling(model.net, device.type, compiled):
+        for it in bar:
+            _iterate(t, cfg, d, data, done, writer, it)
+            done.iteration, done.seconds = it + 1, time.perf_counter() - t0
+            if state is not None and (done.iteration % save_every == 0 or done.iteration == cfg.iterations):
+                write_state(state, key, done, t)
+            if it % 20 == 0:
+                bar.set_postfix(loss=f"{sum(done.history[-20:]) / len(done.history[-20:]):.3f}")
     model.net.eval()
     if done.shadow is not None:
         with torch.no_grad():
@@ -168,6 +171,7 @@ def _fit(
         final_loss=float(sum(history[-50:]) / max(len(history[-50:]), 1)),
         chance_loss=math.log(d.candidates),
         seconds=round(time.perf_counter() - t0, 2),
+        compiled=compiled,
         # the learning curve: the mean loss over each block of 10 iterations
         history=[
             round(sum(history[i : i + 10]) / len(history[i : i + 10]), 4) for i in range(0, len(history), 10)

@@ -181,6 +181,7 @@ def _mean_of(
         final_loss=sum(i.final_loss or 0.0 for i in infos) / len(infos),
         chance_loss=infos[0].chance_loss,
         seconds=round(sum(i.seconds or 0.0 for i in infos), 2),
+        compiled=infos[0].compiled,
         history=[round(sum(c) / len(c), 4) for c in zip(*curves)],
         members=[{"seed": i.seed, "final_loss": i.final_loss, "seconds": i.seconds} for i in infos],
     )

@@ -84,6 +84,7 @@ class ModelInfo:
     final_loss: float | None = None  # mean training loss over the last 50 iterations
     chance_loss: float | None = None  # the loss of an energy that tells nothing apart: log(1 + K)
     seconds: float | None = None  # training time (an ensemble's: its members' summed)
+    compiled: bool | None = None  # whether its network's passes trained compiled (TrainConfig.compile)
     history: list[float] | None = None  # the learning curve: the mean loss of each block of 10 iterations
     trust: TrustReference | None = None  # what placements are judged against
     validation: dict[str, Any] | None = None  # the held-out evaluation (``EvalReport.to_dict()``)

@@ -21,6 +21,7 @@ from torch import Tensor, nn
 from ..errors import ConfigError, check_number
 from ..runtime import check_memory, chunk_rows, return_freed_memory, usable_cores
 from .chunks import ChunkedPooled, PoseGradInPieces, pooled_in_chunks
+from .compiled import CompiledPoseGrad, compiled_of
 from .graph import WALLS, edge_features, neighbour_graph, senders, wall_nodes
 
 __all__ = [
@@ -335,6 +336,12 @@ class EnergyNet(nn.Module):
         edges = b * per_row
         if edges >= 2 * PIECE_EDGES:  # enough work to share: a piece for each core, none too small
             piece = min(piece, -(-b // min(usable_cores(), edges // PIECE_EDGES)))
+        c = compiled_of(self)
+        if c is not None and grad:  # training's compiled passes (compiled.compiling)
+            if not weight_grads and poses.requires_grad:  # a chain's pose gradient
+                return CompiledPoseGrad.apply(self, c, piece, *args)
+            if weight_grads and b <= rows:  # the loss's energies
+                return c.energy(self.resolve(*args))
         if poses.device.type == "cpu" and b > piece:
             if not grad:
                 return self.readout(pooled_in_chunks(self, piece, args))
@@ -357,10 +364,51 @@ class EnergyNet(nn.Module):
         nodes: Tensor | None,
         round: Tensor | None,
     ) -> Tensor:
-        """The message layers and the global add pooling: ``(B, hidden)``."""
+        """The message layers and the global add pooling: ``(B, hidden)``: :meth:`pooled` of
+        :meth:`resolve`'s inputs."""
+        return self.pooled(*self.resolve(poses, feats, sizes, mask, nodes, round))
+
+    def resolve(
+        self,
+        poses: Tensor,
+        feats: Tensor | None,
+        sizes: Tensor | None,
+        mask: Tensor | None,
+        nodes: Tensor | None,
+        round: Tensor | None,
+    ) -> tuple[
+        Tensor, Tensor | None, Tensor | None, Tensor, Tensor | None, Tensor | None, Tensor | None, bool
+    ]:
+        """:meth:`pooled`'s inputs: what depends on the data's values (whether any object is round,
+        whether the rows have walls) settled here, so that :meth:`pooled` has no branch but on the
+        network's settings and which inputs are given."""
         b, n, _ = poses.shape
         if mask is None:
             mask = torch.ones(b, n, dtype=torch.bool, device=poses.device)
+        # scenes without a round object take the plain path (the same numbers, less work)
+        rnd = None
+        if round is not None and self.cfg.round_invariant and bool(round.any()):
+            rnd = round.expand(b, n)
+        walls = wall_nodes(mask).expand(b, n) if self.cfg.walls else None
+        wall_edges = walls is not None and bool(walls.any())
+        return poses, feats, sizes, mask, nodes, rnd, walls, wall_edges
+
+    def pooled(
+        self,
+        poses: Tensor,
+        feats: Tensor | None,
+        sizes: Tensor | None,
+        mask: Tensor,
+        nodes: Tensor | None,
+        rnd: Tensor | None,
+        walls: Tensor | None,
+        wall_edges: bool,
+    ) -> Tensor:
+        """:meth:`_pooled` once the data's branches are settled: ``mask (B, N)``; ``rnd (B, N)`` the round
+        objects, or None for none; ``walls (B, N)`` the wall nodes (a network with walls), and
+        ``wall_edges`` whether any row has one. The same operations for any values of the tensors:
+        what :mod:`~scenescore.models.compiled` compiles."""
+        b, n, _ = poses.shape
         if nodes is None:
             assert feats is not None and sizes is not None, "EnergyNet: give feats and sizes, or nodes"
             v = self.node_embedding(feats, sizes)
@@ -368,22 +416,17 @@ class EnergyNet(nn.Module):
             v = nodes
         v = v.expand(b, n, v.shape[-1])
         maskf = mask.to(poses.dtype).expand(b, n)
-        walls = wall_nodes(mask).expand(b, n) if self.cfg.walls else None
         index = None
         if self.cfg.local:
             assert self.cfg.neighbours is not None and self.cfg.radius is not None
             reach = 0.5 * v[..., -2:].amax(dim=-1)  # half the longer side (length scales): see node_embedding
             pos = poses[..., :2] / self.cfg.length_scale
             index, pair = neighbour_graph(
-                pos, reach, mask.expand(b, n), walls, self.cfg.neighbours, self.cfg.radius
+                pos, reach, mask.expand(b, n), walls, self.cfg.neighbours, self.cfg.radius, wall_edges
             )
         else:
             eye = torch.eye(n, dtype=poses.dtype, device=poses.device)
             pair = maskf[:, :, None] * maskf[:, None, :] * (1 - eye)  # (B, N, N), no self-edges, no padding
-        # scenes without a round object take the plain path (the same numbers, less work)
-        rnd = None
-        if round is not None and self.cfg.round_invariant and bool(round.any()):
-            rnd = round.expand(b, n)
         if self.cfg.absolute:
             th = poses[..., 2:3]
             heading = torch.cat([torch.cos(th), torch.sin(th)], dim=-1)

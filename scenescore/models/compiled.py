@@ -1,0 +1,121 @@
+"""The energy network's passes compiled (torch.compile, inductor): fewer, fused kernels for each training
+iteration, the same function to float rounding.
+
+Two functions per network, both of :meth:`~scenescore.models.network.EnergyNet.pooled` (the network
+once its data's branches are settled) and its head:
+
+- ``pose_grad``: a batch's energies and their gradient with respect to the poses, the gradient taken
+  inside the graph (the counter-examples' Langevin steps). It is called with grad mode off, so that the
+  compiler never prepares it to be differentiated again in the weights;
+- ``energy``: the energies with their graph for the weights' gradient (the loss's passes), forward and
+  backward both compiled.
+
+The batch and object dimensions vary from the first call, so pieces and size groups of any size share
+a graph. A network is compiled while it trains (:func:`compiling`) and is eager again after, so that
+placing and evaluating a model is the same whatever trained it. Compiled networks are kept beside the
+network, not in it: a model pickles and copies as it always does.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from functools import partial
+from typing import Any
+
+import torch
+from torch import Tensor
+from torch.autograd.function import once_differentiable
+
+from ..runtime import compile_fn, in_parallel, mark_batch, traced_autograd
+
+# ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
+EnergyNet = Any
+
+__all__ = ["Compiled", "compiling", "compiled_of", "CompiledPoseGrad"]
+
+
+class Compiled:
+    """The compiled ``pose_grad`` and ``energy`` of one network (see the module's docstring)."""
+
+    def __init__(self, net: EnergyNet, device_type: str):
+        def pose_grad(*resolved: Any) -> tuple[Tensor, Tensor]:
+            with torch.enable_grad():
+                x = resolved[0].detach().requires_grad_(True)
+                e = net.readout(net.pooled(x, *resolved[1:]))
+                (g,) = torch.autograd.grad(e.sum(), x)
+            return e.detach(), g.detach()
+
+        def energy(*resolved: Any) -> Tensor:
+            return net.readout(net.pooled(*resolved))
+
+        self._pose_grad = compile_fn(pose_grad, device_type)
+        self._energy = compile_fn(energy, device_type)
+
+    def pose_grad(self, resolved: Sequence[Any]) -> tuple[Tensor, Tensor]:
+        """``(energies (B,), their gradient in the poses (B, N, 3))`` of one batch's resolved inputs."""
+        args = _contiguous(resolved)
+        mark_batch(*[a for a in args if isinstance(a, Tensor)])
+        with torch.no_grad(), traced_autograd():
+            return self._pose_grad(*args)
+
+    def energy(self, resolved: Sequence[Any]) -> Tensor:
+        """The energies ``(B,)`` of one batch's resolved inputs, differentiable in the weights."""
+        args = _contiguous(resolved)
+        mark_batch(*[a for a in args if isinstance(a, Tensor)])
+        return self._energy(*args)
+
+
+def _contiguous(resolved: Sequence[Any]) -> list[Any]:
+    """The inputs laid out densely: a size group cropped to fewer objects is a strided view, and the
+    compiler keeps one graph per layout."""
+    return [a.contiguous() if isinstance(a, Tensor) else a for a in resolved]
+
+
+_COMPILED: weakref.WeakKeyDictionary[Any, Compiled] = weakref.WeakKeyDictionary()
+
+
+def compiled_of(net: EnergyNet) -> Compiled | None:
+    """``net``'s compiled passes while it is :func:`compiling`, else None."""
+    return _COMPILED.get(net)
+
+
+@contextmanager
+def compiling(net: EnergyNet, device_type: str, on: bool = True) -> Iterator[None]:
+    """Within the block ``net``'s chains and loss run compiled (``on``), eager after it."""
+    if not on:
+        yield
+        return
+    _COMPILED[net] = Compiled(net, device_type)
+    try:
+        yield
+    finally:
+        _COMPILED.pop(net, None)
+
+
+class CompiledPoseGrad(torch.autograd.Function):
+    """The energies of a batch and their gradient in the poses, ``rows`` pose sets at a time through the
+    compiled ``pose_grad``: the first piece in the calling thread (it compiles the graph the first time),
+    the rest side by side; the backward pass scales the kept gradient. The other inputs and the weights
+    get no gradient."""
+
+    @staticmethod
+    def forward(ctx: Any, net: EnergyNet, c: Compiled, rows: int, *inputs: Tensor | None) -> Tensor:
+        b = inputs[0].shape[0]  # type: ignore[union-attr]
+
+        def piece(a: int) -> tuple[Tensor, Tensor]:
+            part = [t if t is None or t.shape[0] != b else t[a : a + rows] for t in inputs]
+            part = [None if t is None else t.detach() for t in part]
+            return c.pose_grad(net.resolve(*part))
+
+        first = piece(0)
+        done = [first, *in_parallel([partial(piece, a) for a in range(rows, b, rows)])]
+        ctx.save_for_backward(torch.cat([g for _, g in done]))
+        return torch.cat([e for e, _ in done])
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
+        (g,) = ctx.saved_tensors
+        return (None, None, None, grad[:, None, None] * g, None, None, None, None, None)

@@ -1,0 +1,54 @@
+"""Compiling a function with torch.compile (inductor) for this machine: where compiled kernels are kept
+between runs, the compiler's mode for the device, and the per-thread settings a compiled call needs.
+
+Compiled kernels are kept in the user's cache folder (``inductor/``, :mod:`~scenescore.runtime.cache`)
+unless ``TORCHINDUCTOR_CACHE_DIR`` names another, so that a second run on this machine reads them
+instead of compiling again. On a CUDA device the compiled graphs replay as CUDA graphs
+(``mode="reduce-overhead"``): one launch per graph instead of one per kernel.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import torch
+
+from .cache import cache_folder
+
+__all__ = ["compile_fn", "compile_mode", "traced_autograd", "mark_batch"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+INDUCTOR_CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
+# whether the user named inductor's cache: read when the package is imported, since torch sets the
+# variable to its own default (a temporary folder) the first time anything of its compiler asks
+_USER_CACHE = bool(os.environ.get(INDUCTOR_CACHE_ENV))
+
+
+def compile_mode(device_type: str) -> str:
+    """torch.compile's mode on a device of ``device_type``: CUDA graphs on CUDA, the default elsewhere."""
+    return "reduce-overhead" if device_type == "cuda" else "default"
+
+
+def compile_fn(fn: F, device_type: str) -> F:
+    """``fn`` compiled as one graph (``fullgraph``: a break is an error, not a silent slow path), its
+    kernels kept in the user's cache folder."""
+    if not _USER_CACHE:
+        os.environ[INDUCTOR_CACHE_ENV] = str(cache_folder("inductor"))
+    return torch.compile(fn, fullgraph=True, mode=compile_mode(device_type))  # type: ignore[return-value]
+
+
+def traced_autograd() -> Any:
+    """The settings a compiled call that takes a gradient inside its graph needs, for the calling thread
+    (torch keeps the compiler's settings per thread: a worker thread does not see the caller's)."""
+    return torch._dynamo.config.patch(trace_autograd_ops=True)
+
+
+def mark_batch(*tensors: torch.Tensor | None) -> None:
+    """Mark the batch and object dimensions of ``tensors`` as varying, so that pieces and size groups of
+    other sizes reuse one compiled graph."""
+    for t in tensors:
+        if t is not None:
+            for d in range(min(t.dim(), 2)):
+                torch._dynamo.maybe_mark_dynamic(t, d)
