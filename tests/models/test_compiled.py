@@ -1,0 +1,97 @@
+"""Compiled training (``TrainConfig.compile``): the same function as eager to float rounding, a seed
+naming one model in compiled mode whatever the threads, and ``auto`` compiling only where it pays."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+
+import pytest
+import torch
+
+import scenescore as ss
+from scenescore.learn import NetworkConfig, TrainConfig
+from scenescore.learn.config import COMPILE_FROM, compiles, derive
+
+TINY = TrainConfig(
+    iterations=3, negatives=4, batch_scenes=4, network=NetworkConfig(hidden=8, embed_dim=8, layers=1)
+)
+
+
+def _weights(model: ss.models.ScoreModel) -> list[torch.Tensor]:
+    return [p.detach().clone() for p in model.net.parameters()]
+
+
+@pytest.mark.slow
+@pytest.mark.float_order
+def test_compiled_training_is_eagers_function_and_a_seed_names_its_model():
+    scenes = ss.scenarios.get("dining").generate(6, 0)
+    eager = ss.learn.fit(scenes, replace(TINY, compile="off"), seed=0, progress=False)
+    once = ss.learn.fit(scenes, replace(TINY, compile="on"), seed=0, progress=False)
+    assert once.info.compiled and not eager.info.compiled
+    # the same function: the losses and weights agree to float rounding, not bit for bit
+    assert once.info.history == pytest.approx(eager.info.history, rel=1e-4)
+    for a, b in zip(_weights(once), _weights(eager), strict=True):
+        assert torch.allclose(a, b, rtol=1e-3, atol=1e-4)
+    # within the compiled mode a seed names a model, however many pieces run at once
+    with ss.thread_budget(2):
+        twice = ss.learn.fit(scenes, replace(TINY, compile="on"), seed=0, progress=False)
+    assert all(torch.equal(a, b) for a, b in zip(_weights(once), _weights(twice), strict=True))
+    # placing with the trained model is eager again: the same answer as the same weights trained eagerly
+    hole = scenes[0].without(scenes[0].objects[1].name)
+    opts = ss.solvers.langevin.LangevinOptions(
+        particles=8, chain=replace(ss.solvers.kernel.PLACEMENT, steps=4)
+    )
+    copy = ss.models.ScoreModel(type(once.net)(once.net.cfg), once.encoder)
+    copy.net.load_state_dict(once.net.state_dict())
+    copy.info = once.info
+    assert (
+        ss.place(once, hole, opts, seed=0).objects[1].pose
+        == ss.place(copy, hole, opts, seed=0).objects[1].pose
+    )
+
+
+def test_auto_compiles_from_the_work_where_a_compiler_is_there(monkeypatch):
+    from scenescore.learn import config
+
+    small = derive(TINY, ss.scenarios.get("dining").generate(4, 0))
+    large = replace(small, work=COMPILE_FROM)
+    auto = replace(TINY, compile="auto")
+    assert not compiles(auto, small, "cpu") and compiles(replace(TINY, compile="on"), small, "cpu")
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: True)
+    assert compiles(auto, large, "cpu") and not compiles(replace(TINY, compile="off"), large, "cpu")
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: False)
+    assert not compiles(auto, large, "cpu")  # no compiler: eager, not an error
+    with pytest.raises(ss.errors.ConfigError, match="compile: expected 'auto', 'on' or 'off'"):
+        TrainConfig(compile="yes")  # type: ignore[arg-type]
+
+
+def test_the_work_grows_with_the_objects_each_reads_and_the_iterations():
+    scenes = ss.scenarios.get("dining").generate(4, 0)
+    d = derive(TINY, scenes)
+    rows = 4 * (4 * TINY.chain_steps + 4 + TINY.reanchored + 1)  # chains' steps, then the loss's passes
+    assert d.work == pytest.approx(TINY.iterations * rows * sum(len(s) ** 2 for s in scenes) / len(scenes))
+    assert derive(replace(TINY, iterations=6), scenes).work == pytest.approx(2 * d.work)
+
+
+def test_compiled_kernels_are_kept_in_the_users_cache_folder(monkeypatch, tmp_path):
+    from scenescore.runtime import compiling
+
+    monkeypatch.setattr(compiling, "_USER_CACHE", False)
+    monkeypatch.setenv("SCENESCORE_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv(compiling.INDUCTOR_CACHE_ENV, raising=False)
+    compiling.compile_fn(lambda x: x + 1, "cpu")  # not called: nothing compiled yet
+    assert os.environ[compiling.INDUCTOR_CACHE_ENV] == str(tmp_path / "inductor")
+    monkeypatch.setattr(compiling, "_USER_CACHE", True)  # a folder the user named stays theirs
+    monkeypatch.setenv(compiling.INDUCTOR_CACHE_ENV, str(tmp_path / "theirs"))
+    compiling.compile_fn(lambda x: x + 1, "cpu")
+    assert os.environ[compiling.INDUCTOR_CACHE_ENV] == str(tmp_path / "theirs")
+    assert compiling.compile_mode("cuda") == "reduce-overhead" and compiling.compile_mode("cpu") == "default"
+
+
+def test_pooled_of_the_resolved_inputs_is_the_networks_own_pass():
+    torch.manual_seed(0)
+    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1, neighbours=3, radius=4.0)
+    st = model.tensors(ss.scenarios.get("zoo-bedroom").generate(2, 0))
+    args = (st.poses, st.feats, st.sizes, st.mask, None, st.round)
+    assert torch.equal(model.net.pooled(*model.net.resolve(*args)), model.net._pooled(*args))
