@@ -14,6 +14,7 @@ import os
 import sys
 import time
 from collections.abc import Sequence
+from contextlib import AbstractContextManager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -39,7 +40,7 @@ from .run import Run
 from .size_groups import SizeGroups
 from .training_state import Progress, Trainer, read_state, state_key, write_state
 
-__all__ = ["fit", "moving_average"]
+__all__ = ["fit", "moving_average", "Training"]
 
 
 def fit(
@@ -109,6 +110,45 @@ def _from_state(state: str | os.PathLike | None, resume: bool) -> bool:
     return resume and there
 
 
+class Training:
+    """One training run from its start: a new model of ``cfg`` for ``scenes`` on ``device``, its
+    scenes' tensors, counter-example chains, optimiser, schedule and random streams (seeded by ``seed``),
+    and where it stands (:attr:`done`); :meth:`step` runs one iteration, within :meth:`session` (the
+    network compiled there when :attr:`compiled`)."""
+
+    def __init__(
+        self,
+        scenes: Sequence[Scene],
+        cfg: TrainConfig,
+        encoder: Encoder | None,
+        seed: int,
+        device: torch.device,
+    ):
+        torch.manual_seed(seed)
+        self.cfg, self.device = cfg, device
+        gen = generator(seed, device)
+        self.derived = d = derive(cfg, scenes, encoder)
+        self.model = model = ScoreModel(EnergyNet(d.energy), d.encoder).to(device)
+        self.data = model.tensors(scenes)
+        buf = ChainBuffer(self.data, cfg.negatives, cfg, gen)
+        opt = torch.optim.AdamW(model.net.parameters(), lr=d.lr, weight_decay=cfg.weight_decay)
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(
+            opt, T_max=max(cfg.iterations, 1), eta_min=cfg.lr_final
+        )
+        self.trainer = Trainer(model, opt, sched, buf, gen)
+        self.done = Progress()
+        self.compiled = compiles(cfg, d, device.type)
+
+    def session(self) -> AbstractContextManager[None]:
+        """The block within which :meth:`step` runs (the network's passes compiled, if they are)."""
+        return compiling(self.model.net, self.device.type, self.compiled)
+
+    def step(self, writer: Any = None) -> None:
+        """The next iteration: one optimiser step, the schedule's, the weights' average, the history."""
+        _iterate(self.trainer, self.cfg, self.derived, self.data, self.done, writer, self.done.iteration)
+        self.done.iteration += 1
+
+
 def _fit(
     scenes: Sequence[Scene],
     cfg: TrainConfig,
@@ -126,38 +166,30 @@ def _fit(
     training state goes to ``run.state`` every ``run.save_every`` iterations and at the end; ``resume``:
     start from the state there (which must exist)."""
     state, save_every = run.state, run.save_every
-    torch.manual_seed(seed)
-    gen = generator(seed, device)
-    d = derive(cfg, scenes, encoder)
-    model = ScoreModel(EnergyNet(d.energy), d.encoder).to(device)
-    data = model.tensors(scenes)
-    buf = ChainBuffer(data, cfg.negatives, cfg, gen)
-    opt = torch.optim.AdamW(model.net.parameters(), lr=d.lr, weight_decay=cfg.weight_decay)
-    sched = torch.optim.lr_scheduler.CosineAnnealingLR(
-        opt, T_max=max(cfg.iterations, 1), eta_min=cfg.lr_final
-    )
-    t = Trainer(model, opt, sched, buf, gen)
-    key = state_key(scenes, cfg, d.encoder, seed, device)
-    done = read_state(state, key, t) if resume and state is not None else Progress()
+    tr = Training(scenes, cfg, encoder, seed, device)
+    key = state_key(scenes, cfg, tr.derived.encoder, seed, device)
+    if resume and state is not None:
+        tr.done = read_state(state, key, tr.trainer)
+    done = tr.done
     t0 = time.perf_counter() - done.seconds
-    compiled = compiles(cfg, d, device.type)
     bar = tqdm(
-        range(done.iteration, cfg.iterations),
-        initial=done.iteration,
         total=cfg.iterations,
-        desc="train (compiled)" if compiled else "train",
+        initial=done.iteration,
+        desc="train (compiled)" if tr.compiled else "train",
         disable=not progress,
         unit="it",
         dynamic_ncols=True,
     )
-    with compiling(model.net, device.type, compiled):
-        for it in bar:
-            _iterate(t, cfg, d, data, done, writer, it)
-            done.iteration, done.seconds = it + 1, time.perf_counter() - t0
+    with tr.session(), bar:
+        while done.iteration < cfg.iterations:
+            tr.step(writer)
+            done.seconds = time.perf_counter() - t0
             if state is not None and (done.iteration % save_every == 0 or done.iteration == cfg.iterations):
-                write_state(state, key, done, t)
-            if it % 20 == 0:
+                write_state(state, key, done, tr.trainer)
+            if done.iteration % 20 == 1:
                 bar.set_postfix(loss=f"{sum(done.history[-20:]) / len(done.history[-20:]):.3f}")
+            bar.update()
+    model = tr.model
     model.net.eval()
     if done.shadow is not None:
         with torch.no_grad():
@@ -169,9 +201,9 @@ def _fit(
         seed=seed,
         scenes=len(scenes),
         final_loss=float(sum(history[-50:]) / max(len(history[-50:]), 1)),
-        chance_loss=math.log(d.candidates),
+        chance_loss=math.log(tr.derived.candidates),
         seconds=round(time.perf_counter() - t0, 2),
-        compiled=compiled,
+        compiled=tr.compiled,
         # the learning curve: the mean loss over each block of 10 iterations
         history=[
             round(sum(history[i : i + 10]) / len(history[i : i + 10]), 4) for i in range(0, len(history), 10)
