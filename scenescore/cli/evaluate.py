@@ -26,6 +26,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--objects", default=None, help="comma-separated object names to mask (default: every one)"
     )
+    p.add_argument(
+        "--per-category",
+        type=int,
+        default=None,
+        metavar="K",
+        help="at most K placements of each category, spread over the scenes (default: every object; "
+        "`scenescore train` validates on 32)",
+    )
     p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON here")
     add_common(p)
     add_device(p)
@@ -52,7 +60,17 @@ def run(args: argparse.Namespace) -> int:
         missing = [n for n in objects if n not in names]
         if missing:
             raise UserError(f"--objects: no object named {missing} in {args.data}")
-    ev = evaluate(model, scenes, train, objects=objects, seed=args.seed, progress=not args.quiet)
+    if args.per_category is not None and args.per_category < 1:
+        raise UserError(f"--per-category: {args.per_category} is not a positive count of placements")
+    ev = evaluate(
+        model,
+        scenes,
+        train,
+        objects=objects,
+        seed=args.seed,
+        progress=not args.quiet,
+        per_category=args.per_category,
+    )
     print(f"leave-one-object-out on {len(scenes)} scenes of {args.data} (seed {args.seed}):\n{ev.table()}")
     for w in ev.warnings():
         print(f"warning: {w}", file=sys.stderr)

@@ -134,15 +134,31 @@ class OraclePlacer:
         return out
 
 
-def leave_one_out(scenes: Sequence[Scene], objects: Sequence[str] | None = None) -> list[MissingCase]:
-    """Every object that may move (or only those called ``objects``), masked in turn: one case each."""
-    cases = []
-    for s in scenes:
+def leave_one_out(
+    scenes: Sequence[Scene], objects: Sequence[str] | None = None, per_category: int | None = None
+) -> list[MissingCase]:
+    """Every object that may move (or only those called ``objects``), masked in turn: one case each, in
+    scene order. ``per_category``: at most that many of each category, spread over the scenes (each
+    scene's first object of the category, scene by scene, then each one's second, ...), so that a room of
+    a hundred chairs is judged on a few of them and a table's few forks on every one."""
+    picked = []
+    for k, s in enumerate(scenes):
+        seen: dict[str, int] = {}
         for o in s.objects:
             if o.pose is None or o.fixed or (objects is not None and o.name not in objects):
                 continue
-            cases.append(MissingCase(s.without(o.name), o.name, o.category, o.pose))
-    return cases
+            rank = seen[o.category] = seen.get(o.category, -1) + 1
+            picked.append((rank, k, len(picked), s, o))
+    if per_category is not None:
+        taken: dict[str, int] = {}
+        kept = []
+        for item in sorted(picked, key=lambda t: (t[0], t[1])):
+            cat = item[4].category
+            if taken.get(cat, 0) < per_category:
+                taken[cat] = taken.get(cat, 0) + 1
+                kept.append(item)
+        picked = sorted(kept, key=lambda t: t[2])
+    return [MissingCase(s.without(o.name), o.name, o.category, o.pose) for _, _, _, s, o in picked]
 
 
 def case_errors(case: MissingCase, pose: Sequence[float], symmetric: bool) -> tuple[float, float | None]:

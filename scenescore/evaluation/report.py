@@ -152,10 +152,12 @@ def evaluate(
     objects: Sequence[str] | None = None,
     seed: int = 0,
     progress: bool = False,
+    per_category: int | None = None,
 ) -> EvalReport:
     """Place every movable object of ``scenes`` back in turn (or only ``objects``) and tabulate the errors
     per category, beside the nearest-neighbour baseline fitted on ``train_scenes`` when given, with the
-    held-out InfoNCE loss. Deterministic in ``seed``: ``scenescore train`` and ``scenescore evaluate``
+    held-out InfoNCE loss; ``per_category``: at most that many placements of each category
+    (:func:`~scenescore.evaluation.cases.leave_one_out`). Deterministic in ``seed``: ``scenescore train`` and ``scenescore evaluate``
     print the same figures for the same scenes. Lengths are printed in the unit the scenes name
     (:func:`~scenescore.scene.units.declared_unit`); flags of the model's own caveats (``info.caveats``) do not
     count as out of distribution."""
@@ -164,7 +166,7 @@ def evaluate(
     from .baselines import NearestNeighbour
 
     unit = declared_unit([*scenes, *(train_scenes or [])])
-    cases = leave_one_out(scenes, objects)
+    cases = leave_one_out(scenes, objects, per_category)
     if not cases:
         raise SceneError("evaluate: no object to place (every object is fixed, unknown or not named)")
     placer = SceneScorePlacer(progress=progress)

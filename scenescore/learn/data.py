@@ -12,6 +12,7 @@ from ..scene.scene import Scene, SceneError
 
 __all__ = [
     "VALIDATION_FRACTION",
+    "VALIDATION_PER_CATEGORY",
     "check_training_data",
     "data_scale",
     "local_radius",
@@ -21,6 +22,8 @@ __all__ = [
 
 #: the fraction of the scenes ``scenescore train`` holds out for validation by default (``--val``)
 VALIDATION_FRACTION = 0.15
+# held-out placements judged per category: every one of a table's few forks, a sample of a hall's chairs
+VALIDATION_PER_CATEGORY = 32
 
 
 def data_scale(scenes: Sequence[Scene], movable: bool = False) -> tuple[float, float]:

@@ -22,6 +22,7 @@ import torch
 from ..encoders import Encoder
 from ..evaluation.report import CategoryErrors, EvalReport, evaluate
 from ..learn.config import TrainConfig
+from ..learn.data import VALIDATION_PER_CATEGORY
 from ..learn.loop import fit
 from ..learn.members import Group, Job, train_groups, training_jobs
 from ..learn.run import Run
@@ -142,7 +143,9 @@ def _place_fold(
 ) -> EvalReport:
     """A fold's held-out objects placed back with its model ``task = (model, held, train)``."""
     model, held, train_s = task
-    return evaluate(model, held, train_s, seed=seed, progress=progress)
+    return evaluate(
+        model, held, train_s, seed=seed, progress=progress, per_category=VALIDATION_PER_CATEGORY
+    )
 
 
 def _weighted(values: Sequence[tuple[float | None, int]]) -> float | None:

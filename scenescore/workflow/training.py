@@ -22,7 +22,12 @@ import torch
 from ..encoders import Encoder
 from ..evaluation.report import EvalReport, evaluate
 from ..learn.config import TrainConfig
-from ..learn.data import VALIDATION_FRACTION, check_training_data, split_validation
+from ..learn.data import (
+    VALIDATION_FRACTION,
+    VALIDATION_PER_CATEGORY,
+    check_training_data,
+    split_validation,
+)
 from ..learn.logs import log_validation
 from ..learn.loop import fit
 from ..learn.members import Group, Job, member_state, train_groups
@@ -161,7 +166,9 @@ def train(
     record["training"] = info.training()
     examples: list[Any] = []
     if held:
-        ev = evaluate(model, held, train_s, seed=seed, progress=progress)
+        ev = evaluate(
+            model, held, train_s, seed=seed, progress=progress, per_category=VALIDATION_PER_CATEGORY
+        )
         examples = _adopt(model, ev, record, run.log_dir, cfg, say)
         if val.heldout is None and out_path is not None:
             _write_heldout(held, out_path, record, seed, out.source, say)
@@ -227,7 +234,7 @@ def _write_heldout(
     held_file = out.with_name(out.stem + ".val.jsonl")
     write_jsonl(held_file, held)
     record["held_out_file"] = str(held_file)
-    again = f"scenescore evaluate {out} {held_file}" + (
+    again = f"scenescore evaluate {out} {held_file} --per-category {VALIDATION_PER_CATEGORY}" + (
         f" --train-data {source}" if source is not None else ""
     )
     say(f"held-out scenes -> {held_file}; `{again} --seed {seed}` prints the same figures")

@@ -46,9 +46,13 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
     assert (tmp_path / "t.png").stat().st_size > 0
     held = tmp_path / "m.val.jsonl"
     ev_json = tmp_path / "ev.json"
-    rc = main(["evaluate", str(ckpt), str(held), "--train-data", str(data), "--out", str(ev_json), "--quiet"])
-    assert rc == 0
+    again = ["evaluate", str(ckpt), str(held), "--per-category", "32", "--train-data", str(data)]
+    assert f"`scenescore evaluate {ckpt} {held} --per-category 32 --train-data {data} --seed 0`" in out
+    assert main([*again, "--out", str(ev_json), "--quiet"]) == 0
     assert json.loads(ev_json.read_text()) == val  # the same figures, to the last digit
+    assert main([*again[:3], "--per-category", "3", "--out", str(ev_json), "--quiet"]) == 0
+    assert json.loads(ev_json.read_text())["placements"] == 12  # three of each of the four categories
+    assert main([*again[:3], "--per-category", "0", "--quiet"]) == 2
     # the checkpoint carries them too
     from scenescore.models import load
 
