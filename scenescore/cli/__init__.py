@@ -134,6 +134,7 @@ ITERATIONS = number(1, 10_000_000, integer=True)  # training iterations (TrainCo
 SEEDS = number(1, 10_000, integer=True)  # runs over seeds seed .. seed+N-1
 JOBS = number(1, 1024, integer=True)  # worker processes
 SCENES = number(1, 1_000_000, integer=True)  # scenes to generate or test on
+PLACEMENTS = number(1, 1_000_000_000, integer=True)  # placements to judge
 
 
 def add_common(p: argparse.ArgumentParser, seed: int | None = 0, seed_help: str | None = None) -> None:

@@ -107,6 +107,14 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "with this decay per iteration (default 0.99; 0: the last iterate)",
     )
     p.add_argument(
+        "--compile",
+        choices=["auto", "on", "off"],
+        default=None,
+        help="run the network's training passes compiled (torch.compile, kept in the user's cache folder): "
+        "auto does where the training is large enough that the first run's compile pays for itself "
+        "(default auto; off: eager)",
+    )
+    p.add_argument(
         "--raw-edges",
         action="store_true",
         help="no edge encoder: the message layers read the raw relative poses, with feature noise 0.3, "
@@ -329,6 +337,7 @@ def _flag_settings(args: argparse.Namespace) -> dict[str, object]:
         "negatives": args.negatives,
         "average": args.average,
         "members": args.members,
+        "compile": args.compile,
     }
     out.update({k: v for k, v in given.items() if v is not None})
     network = {"network.activation": args.activation, "network.message": args.message}

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import UserError, add_common, add_device, add_model, device_of, model_of
+from . import PLACEMENTS, UserError, add_common, add_device, add_model, device_of, model_of
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--per-category",
-        type=int,
+        type=PLACEMENTS,
         default=None,
         metavar="K",
         help="at most K placements of each category, spread over the scenes (default: every object; "
@@ -60,8 +60,6 @@ def run(args: argparse.Namespace) -> int:
         missing = [n for n in objects if n not in names]
         if missing:
             raise UserError(f"--objects: no object named {missing} in {args.data}")
-    if args.per_category is not None and args.per_category < 1:
-        raise UserError(f"--per-category: {args.per_category} is not a positive count of placements")
     ev = evaluate(
         model,
         scenes,
