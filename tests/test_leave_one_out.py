@@ -31,6 +31,12 @@ def test_per_category_spreads_over_the_scenes_and_keeps_the_few():
     assert Counter(c.category for c in cases) == {"chair": 5, "fork": 3}  # a hall's chairs capped, every fork
     chairs = [(c.scene.meta["id"], c.name) for c in cases if c.category == "chair"]
     # each scene's first chair, then each one's second, in scene order
-    assert chairs == [("a", "chair_0"), ("a", "chair_1"), ("b", "chair_0"), ("b", "chair_1"), ("c", "chair_0")]
+    assert chairs == [
+        ("a", "chair_0"),
+        ("a", "chair_1"),
+        ("b", "chair_0"),
+        ("b", "chair_1"),
+        ("c", "chair_0"),
+    ]
     assert leave_one_out(scenes, per_category=1000) == leave_one_out(scenes)
     assert [c.name for c in leave_one_out(scenes, ["fork_0"], per_category=2)] == ["fork_0", "fork_0"]

@@ -143,9 +143,7 @@ def _place_fold(
 ) -> EvalReport:
     """A fold's held-out objects placed back with its model ``task = (model, held, train)``."""
     model, held, train_s = task
-    return evaluate(
-        model, held, train_s, seed=seed, progress=progress, per_category=VALIDATION_PER_CATEGORY
-    )
+    return evaluate(model, held, train_s, seed=seed, progress=progress, per_category=VALIDATION_PER_CATEGORY)
 
 
 def _weighted(values: Sequence[tuple[float | None, int]]) -> float | None:
