@@ -107,19 +107,31 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "with this decay per iteration (default 0.99; 0: the last iterate)",
     )
     p.add_argument(
-        "--compile",
-        choices=["auto", "on", "off"],
-        default=None,
-        help="run the network's training passes compiled (torch.compile, kept in the user's cache folder): "
-        "auto does where the training is large enough that the first run's compile pays for itself "
-        "(default auto; off: eager)",
-    )
-    p.add_argument(
         "--raw-edges",
         action="store_true",
         help="no edge encoder: the message layers read the raw relative poses, with feature noise 0.3, "
         "no size noise and no re-anchored counter-examples (better on Table 2's ordered rows, worse on "
         "larger rooms)",
+    )
+    _add_train_run(p)
+    _add_train_inputs(p)
+    _add_train_outputs(p)
+    _add_train_state(p)
+    add_common(p)
+    add_device(p)
+    p.set_defaults(func=run_train)
+
+
+def _add_train_run(p: argparse.ArgumentParser) -> None:
+    """How ``scenescore train`` runs: compiled or not, in how many processes."""
+    p.add_argument(
+        "--compile",
+        choices=["auto", "on", "off"],
+        default=None,
+        help="run the network's training passes compiled (torch.compile, kept in the user's cache folder): "
+        "auto does on a GPU, or a CPU of one core, where the training is large enough that the first "
+        "run's compile pays for itself; on more cores eager pieces run side by side instead (default "
+        "auto; off: eager)",
     )
     p.add_argument(
         "--jobs",
@@ -129,12 +141,6 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "model's and cross-validation's folds', each one network or an ensemble's members (default: one "
         "per usable core, at most one per training; the model does not depend on it)",
     )
-    _add_train_inputs(p)
-    _add_train_outputs(p)
-    _add_train_state(p)
-    add_common(p)
-    add_device(p)
-    p.set_defaults(func=run_train)
 
 
 def _add_train_inputs(p: argparse.ArgumentParser) -> None:
