@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..scene.scene import Scene, SceneError
+from ..scene.scene import Scene, SceneError, SceneObject
 
 __all__ = [
     "MissingCase",
@@ -141,7 +141,7 @@ def leave_one_out(
     scene order. ``per_category``: at most that many of each category, spread over the scenes (each
     scene's first object of the category, scene by scene, then each one's second, ...), so that a room of
     a hundred chairs is judged on a few of them and a table's few forks on every one."""
-    picked = []
+    picked: list[tuple[int, int, int, Scene, SceneObject]] = []  # (rank, scene, order, ...)
     for k, s in enumerate(scenes):
         seen: dict[str, int] = {}
         for o in s.objects:
@@ -158,7 +158,12 @@ def leave_one_out(
                 taken[cat] = taken.get(cat, 0) + 1
                 kept.append(item)
         picked = sorted(kept, key=lambda t: t[2])
-    return [MissingCase(s.without(o.name), o.name, o.category, o.pose) for _, _, _, s, o in picked]
+    return [MissingCase(s.without(o.name), o.name, o.category, _known(o)) for _, _, _, s, o in picked]
+
+
+def _known(o: SceneObject) -> tuple[float, float, float]:
+    assert o.pose is not None  # leave_one_out picks only objects with a pose
+    return o.pose
 
 
 def case_errors(case: MissingCase, pose: Sequence[float], symmetric: bool) -> tuple[float, float | None]:
