@@ -102,6 +102,7 @@ def test_no_option_is_a_bare_int():
         ["compare", "p.yaml", "--seeds", "0"],
         ["demo", "--iterations", "0"],
         ["demo", "--test-scenes", "0"],
+        ["evaluate", "m.ckpt", "d.jsonl", "--per-category", "0"],
     ],
 )
 def test_counts_are_range_checked(argv, capsys):
