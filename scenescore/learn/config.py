@@ -290,11 +290,7 @@ def training_work(cfg: TrainConfig, scenes: Sequence[Scene], energy: EnergyConfi
     of a scene of ``n`` objects ``n`` times the nodes each reads (every one, dense; its neighbours and
     the walls, local), at the scenes' mean."""
     walls = WALLS if energy.walls else 0
-    reads = [
-        (len(s) + walls)
-        * (len(s) + walls if energy.neighbours is None else min(len(s) + walls, energy.neighbours + walls))
-        for s in scenes
-    ]
+    reads = [(len(s) + walls) * energy.reads(len(s) + walls) for s in scenes]
     batch = min(cfg.batch_scenes, len(scenes))
     rows = batch * (cfg.negatives * cfg.chain_steps + cfg.negatives + cfg.perturbed + cfg.reanchored + 1)
     return float(cfg.iterations * rows * sum(reads) / len(reads))

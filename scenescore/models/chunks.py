@@ -17,7 +17,7 @@ from ..runtime import in_parallel
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
 
-__all__ = ["ChunkedPooled", "PoseGradInPieces", "pooled_in_chunks"]
+__all__ = ["ChunkedPooled", "PoseGradInPieces", "pooled_in_chunks", "rows_of"]
 
 
 class ChunkedPooled(torch.autograd.Function):
@@ -48,7 +48,7 @@ class ChunkedPooled(torch.autograd.Function):
         param_grads: list[Tensor | None] = [None] * len(params)
         for a in range(0, b, rows):
             with torch.enable_grad():
-                part = _rows_of(args, b, a, a + rows)
+                part = rows_of(args, b, a, a + rows)
                 part = [
                     t.detach().requires_grad_(True) if t is not None and want[k] else t
                     for k, t in enumerate(part)
@@ -90,7 +90,7 @@ class PoseGradInPieces(torch.autograd.Function):
         b = _first(inputs).shape[0]
 
         def piece(a: int) -> tuple[Tensor, Tensor]:
-            part = [None if t is None else t.detach() for t in _rows_of(inputs, b, a, a + rows)]
+            part = [None if t is None else t.detach() for t in rows_of(inputs, b, a, a + rows)]
             with torch.enable_grad():
                 poses = _first(part).requires_grad_(True)
                 p = _pooled_of(net, [poses, *part[1:]])
@@ -127,13 +127,13 @@ def pooled_in_chunks(net: EnergyNet, rows: int, args: Sequence[Tensor | None]) -
 
     def piece(a: int) -> Tensor:
         with torch.no_grad():
-            return _pooled_of(net, _rows_of(args, b, a, a + rows))
+            return _pooled_of(net, rows_of(args, b, a, a + rows))
 
     work = [partial(piece, a) for a in range(0, b, rows)]
     return torch.cat(in_parallel(work, _first(args).device.type == "cpu"))
 
 
-def _rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:
+def rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:
     """Rows ``a:z`` of each of a batch's inputs (see :func:`_rows`)."""
     return [_rows(t, b, a, z) for t in args]
 

@@ -29,6 +29,7 @@ from torch import Tensor
 from torch.autograd.function import once_differentiable
 
 from ..runtime import compile_fn, in_parallel, mark_batch, traced_autograd
+from .chunks import rows_of
 
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
@@ -105,8 +106,7 @@ class CompiledPoseGrad(torch.autograd.Function):
         b = inputs[0].shape[0]  # type: ignore[union-attr]
 
         def piece(a: int) -> tuple[Tensor, Tensor]:
-            part = [t if t is None or t.shape[0] != b else t[a : a + rows] for t in inputs]
-            part = [None if t is None else t.detach() for t in part]
+            part = [None if t is None else t.detach() for t in rows_of(inputs, b, a, a + rows)]
             return c.pose_grad(net.resolve(*part))
 
         first = piece(0)

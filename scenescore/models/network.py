@@ -126,6 +126,11 @@ class EnergyConfig:
         """Whether the graph is local (:attr:`neighbours` within :attr:`radius`) rather than dense."""
         return self.neighbours is not None
 
+    def reads(self, n: int) -> int:
+        """The nodes each node of an ``n``-node graph reads: all of them (dense; the self-edge is
+        masked, not skipped), or its neighbours and the walls (local)."""
+        return n if self.neighbours is None else min(n, self.neighbours + WALLS * self.walls)
+
 
 def parameter_count(cfg: EnergyConfig) -> int:
     """The number of weights :class:`EnergyNet` has for ``cfg``, counted without building it."""
@@ -282,10 +287,8 @@ class EnergyNet(nn.Module):
         return itemsize * (n * self.reads(n) * per_edge + n * per_node)
 
     def reads(self, n: int) -> int:
-        """The nodes each node of an ``n``-node graph reads: all of them (dense; the self-edge is
-        masked, not skipped), or its neighbours and the walls (local)."""
-        cfg = self.cfg
-        return n if cfg.neighbours is None else min(n, cfg.neighbours + WALLS * cfg.walls)
+        """:meth:`EnergyConfig.reads` of this network's graph."""
+        return self.cfg.reads(n)
 
     def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
         """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.runtime.memory.chunk_rows`). With a
