@@ -3,6 +3,7 @@ final model trained on every scene and carrying the pooled figures and their cav
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 
@@ -20,6 +21,7 @@ from scenescore.workflow import Outputs
 from scenescore.workflow.crossval import (
     CROSS_VALIDATE_BELOW,
     FOLDS,
+    LEAVE_ONE_OUT_FROM,
     MIN_SCENES,
     fold_splits,
     folds_for,
@@ -49,7 +51,10 @@ def test_every_scene_is_held_out_exactly_once_and_trained_on_by_the_other_folds(
 def test_little_data_is_cross_validated_by_default_and_folds_can_be_asked_for():
     assert folds_for(12, None, 0.15, False) == FOLDS
     assert folds_for(MIN_SCENES, None, 0.15, False) == FOLDS
-    assert folds_for(MIN_SCENES - 1, None, 0.15, False) == 0  # too few: trained on without validation
+    assert folds_for(MIN_SCENES - 1, None, 0.15, False) == MIN_SCENES - 1  # leave one scene out
+    assert folds_for(LEAVE_ONE_OUT_FROM, None, 0.15, False) == LEAVE_ONE_OUT_FROM
+    assert folds_for(LEAVE_ONE_OUT_FROM - 1, None, 0.15, False) == 0  # too few: trained on without validation
+    assert folds_for(MIN_SCENES - 1, 1, 0.15, False) == 0  # one hold-out asked for
     assert folds_for(CROSS_VALIDATE_BELOW, None, 0.15, False) == 0  # enough for one hold-out
     assert folds_for(12, None, 0.15, True) == 0  # held-out scenes given
     assert folds_for(12, None, 0.0, False) == 0  # no validation asked for
@@ -140,6 +145,32 @@ def test_train_on_a_dozen_scenes_trains_on_all_and_carries_the_cross_validated_f
     assert main([*argv, "--folds", "1", "--force", "--quiet"]) == 0
     held = ss.load_model(tmp_path / "h.ckpt").info
     assert held.scenes == 5 and held.validation["folds"] is None and held.validation["scenes"] == 4
+
+
+def test_five_scenes_are_validated_by_leaving_one_out_and_train_says_what_they_pin_down(tmp_path):
+    scenes = _pairs(5)
+    lines: list[str] = []
+    model = ss.train(
+        scenes,
+        SMALL,
+        seed=0,
+        force=True,
+        progress=False,
+        outputs=Outputs(log=lines.append, report=tmp_path / "r.json"),
+    )
+    v = model.info.validation
+    assert model.info.scenes == 5 and v["folds"] == 5 and v["scenes"] == 5
+    assert sum("cross-validation fold" in line for line in lines) == 5
+    assert any("validating by leaving one scene out at a time (5 more trainings)" in line for line in lines)
+    assert any("each held out once (leave one scene out; seed 0)" in line for line in lines)
+    said = [line for line in lines if line.startswith(("the examples pin down:", "they leave free:"))]
+    assert len(said) == 2
+    pinned = json.loads((tmp_path / "r.json").read_text())["pinned"]
+    ref = model.trust
+    assert ref is not None and ref.spreads is not None and set(pinned) == set(ref.spreads)
+    for c, row in pinned.items():
+        spread = ref.spread(c)
+        assert spread is not None and row["free"] == spread.free and row["anchor"] == spread.anchor
 
 
 @pytest.mark.parametrize("members", [1, 2])

@@ -64,3 +64,27 @@ def test_costs_relation_problem_is_the_example_and_loads(tmp_path):
     (tmp_path / "p.yaml").write_text(shown[0])
     lp = load_problem(tmp_path / "p.yaml")
     assert len(lp.problem.scene) == 5 and lp.solver == "langevin>alm"
+
+
+def test_costs_example_relations_snippet_runs(tmp_path, monkeypatch):
+    """docs/costs.md's ExampleRelations snippet, in a folder holding the files it names."""
+    import shutil
+
+    import scenescore as ss
+
+    (code,) = [
+        b
+        for b in re.findall(r"```text\n(.*?)```", (DOCS / "costs.md").read_text(), flags=re.S)
+        if "ExampleRelations" in b
+    ]
+    shutil.copytree(ROOT / "examples", tmp_path / "examples", ignore=shutil.ignore_patterns("*.ckpt"))
+    scenes = ss.scenarios.get("dining").generate(6, 0)
+    ss.write_jsonl(tmp_path / "data.jsonl", scenes)
+    ss.learn.fit(scenes, ss.learn.TrainConfig(iterations=3), seed=0, progress=False).save(
+        tmp_path / "model.ckpt"
+    )
+    monkeypatch.chdir(tmp_path)
+    space: dict = {"__name__": "snippet"}
+    exec(compile(code, "costs.md:snippet", "exec", dont_inherit=True), space)
+    result = space["result"]
+    assert [name for name, _ in result.terms.items()] == ["energy", "overlap", "examples"]

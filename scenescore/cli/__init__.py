@@ -28,6 +28,7 @@ COMMAND_MODULES = [
     "report",
     "problems",
     "heatmap",
+    "explain",
     "export",
     "inspect_model",
     "info",

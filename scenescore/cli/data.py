@@ -17,7 +17,7 @@ from ..models.ensemble import MAX_MEMBERS
 from ..runtime.memory import check, format_gb
 from ..scene.outputs import check_output_path
 from ..scene.scene import Scene, read_jsonl, write_jsonl
-from ..workflow.crossval import CROSS_VALIDATE_BELOW, FOLDS, MIN_SCENES
+from ..workflow.crossval import CROSS_VALIDATE_BELOW, FOLDS, LEAVE_ONE_OUT_FROM, MIN_SCENES
 from . import ITERATIONS, JOBS, SCENES, UserError, add_common, add_device, device_of, number
 from .train_settings import build_config, parse_overrides, read_config
 
@@ -191,7 +191,8 @@ def _add_train_outputs(p: argparse.ArgumentParser) -> None:
         default=None,
         help=f"validate by K-fold cross-validation and train the model on every scene (K more trainings); "
         f"1: one hold-out of --val (default {FOLDS} folds for {MIN_SCENES} to {CROSS_VALIDATE_BELOW - 1} "
-        "scenes, one hold-out for more)",
+        f"scenes, one hold-out for more, and one fold per scene, leaving one scene out, for "
+        f"{LEAVE_ONE_OUT_FROM} to {MIN_SCENES - 1})",
     )
     p.add_argument(
         "--val-data", type=Path, default=None, help="a .jsonl of held-out scenes to validate on instead"

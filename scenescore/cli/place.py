@@ -34,6 +34,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="place by the learned energy alone, overlaps allowed (the paper's protocol)",
     )
+    p.add_argument(
+        "--examples",
+        type=Path,
+        help="a .jsonl of example scenes whose own relative poses join the cost (ExampleRelations): "
+        "with a handful of examples, they hold what the network has not learned",
+    )
+    p.add_argument(
+        "--examples-weight",
+        type=number(0.0, 1e6),
+        default=1.0,
+        help="the weight of --examples' term beside the learned energy (default 1)",
+    )
     add_common(p)
     add_device(p)
     p.set_defaults(func=run)
@@ -57,7 +69,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{args.scene}: no object has `pose: null`; nothing to place")
     cfg = covering(PLACE, model, [scene])
     cfg = cfg if args.particles is None else replace(cfg, particles=args.particles)
-    filled = place(model, scene, cfg, seed=args.seed, energy_only=args.energy_only)
+    extra = None
+    if args.examples is not None:
+        from ..costs import ExampleRelations
+        from ..scene.scene import read_jsonl
+
+        extra = args.examples_weight * ExampleRelations(read_jsonl(args.examples))
+    filled = place(model, scene, cfg, seed=args.seed, energy_only=args.energy_only, extra=extra)
     trust = filled.meta.get("placement", {})
     unit = length_unit(scene)  # lengths as the scene's file gives them
     unit = unit if unit in UNITS else f"({unit})"
@@ -70,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
             f"{n:20s} x={x:+.4g} y={y:+.4g} {unit}  theta={t:+.3f} rad"
             + ("" if conf is None else f"  confidence {conf:.2f}")
         )
+        for note in trust.get(n, {}).get("notes", []):
+            print(f"  {n}: {note}")
     for n in names:
         for flag in trust.get(n, {}).get("flags", []):
             print(f"warning: {n}: {flag}", file=sys.stderr)

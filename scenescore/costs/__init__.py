@@ -20,6 +20,7 @@ from .target import PoseTarget
 from .effort import Anchor, Displacement, EffortTerm, MoveCount
 from .function import CostFn
 from .relation import Relation
+from .examples import ExampleRelations
 
 # isort: on
 
@@ -34,6 +35,7 @@ __all__ = [
     "CostSpec",
     "Displacement",
     "EffortTerm",
+    "ExampleRelations",
     "Guide",
     "HingeCollision",
     "LearnedEnergy",

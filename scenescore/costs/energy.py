@@ -13,6 +13,7 @@ from torch import Tensor
 from ..geometry.poses import compose_poses
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
+from ..models.explain import explain
 from ..models.flags import assess
 from ..models.model import with_walls
 from ..models.rivals import rivals
@@ -143,6 +144,15 @@ class LearnedEnergy(Cost, Guide):
         )
         unit = length_unit(self.visible_scene)
         return {moving[k]: r.reason(unit) for k, r in found.items()}
+
+    def doubted(self, poses: np.ndarray, names: Sequence[str]) -> dict[str, str]:
+        """For each flagged object of ``names`` the energy sees, the relation it doubts: the strongest
+        of the energy's holds on the object that no example shows, else the strongest, with how the
+        examples bear it out (:meth:`~scenescore.models.explain.Explanation.doubt`)."""
+        if self.visible_scene is None or self.model.config.absolute:
+            return {}
+        scene = self.visible_scene.with_poses(np.asarray(poses)[self.visible])
+        return {n: "relation: " + explain(self.model, scene, n).doubt() for n in names if n in scene.names}
 
     def doubts(self, poses: Tensor) -> Tensor | None:
         """Rows that put a moving object the energy sees where the model's data never had one of its

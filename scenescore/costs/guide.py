@@ -17,7 +17,7 @@ poses its training data has.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -76,6 +76,11 @@ class Guide:
         reason by object name (an object this term gives a verdict on); {}: none."""
         return {}
 
+    def doubted(self, poses: np.ndarray, names: Sequence[str]) -> Mapping[str, str]:
+        """For the flagged moving objects ``names`` at ``poses (N, 3)``: the reason this term holds each
+        one where it is, said as the flag to add (``relation: ...``); {}: nothing to say."""
+        return {}
+
 
 def guides(cost: Sum) -> list[Guide]:
     """The terms of ``cost`` that are guides, in the sum's order."""
@@ -103,7 +108,8 @@ def doubts(cost: Sum, poses: Tensor) -> Tensor | None:
 def verdicts(cost: Sum, poses: np.ndarray, alternatives: Alternatives | None = None) -> dict[str, Verdict]:
     """Every guide's verdicts at one pose set ``(N, 3)``, by object name (a later guide's verdict on
     an object replaces an earlier one's); with ``alternatives``, each guide's rivals added to the flags
-    of the objects it gives verdicts on."""
+    of the objects it gives verdicts on; a flagged object's flags end with the relation its guide
+    doubts (:meth:`Guide.doubted`)."""
     out: dict[str, Verdict] = {}
     for g in guides(cost):
         mine = dict(g.verdicts(poses))
@@ -111,6 +117,9 @@ def verdicts(cost: Sum, poses: np.ndarray, alternatives: Alternatives | None = N
             for name, reason in g.rivals(poses, alternatives).items():
                 if name in mine:
                     mine[name].flags.append(reason)
+        flagged = [name for name, v in mine.items() if v.flags]
+        for name, reason in (g.doubted(poses, flagged) if flagged else {}).items():
+            mine[name].flags.append(reason)
         out.update(mine)
     return out
 

@@ -56,6 +56,13 @@ class EvalReport:
     folds: int | None = None  # cross-validation's folds pooled here (None: one set of held-out scenes)
     examples: list[tuple[MissingCase, Scene]] = field(default_factory=list, repr=False)  # a few, for plots
 
+    @property
+    def cross_validation(self) -> str:
+        """How the folds pooled here held scenes out, in words ("" for one set of held-out scenes)."""
+        if not self.folds:
+            return ""
+        return "leave one scene out" if self.folds == self.scenes else f"{self.folds}-fold cross-validation"
+
     def table(self) -> str:
         """The report as aligned text, lengths in the unit the data names (:class:`~scenescore.scene.units.ShownUnit`)."""
         shown = ShownUnit(self.unit)
@@ -87,7 +94,7 @@ class EvalReport:
             lines.append(note)
         lines.append(
             f"held-out InfoNCE loss {self.heldout_loss:.3f} (chance {self.chance_loss:.3f}); "
-            + (f"{self.folds}-fold cross-validation, " if self.folds else "")
+            + (f"{self.cross_validation}, " if self.folds else "")
             + f"{self.scenes} scenes, {self.placements} placements, {self.flagged} flagged out of distribution"
             + (f"; NN = {self.baseline}" if self.baseline else "")
         )

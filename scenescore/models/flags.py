@@ -1,7 +1,8 @@
 """The flags a placed object gets (:func:`assess`), each from its own check against the model's
 :class:`~scenescore.models.trust.TrustReference`: ``energy`` and ``members`` (its share of the energy),
 ``far``, ``apart``, ``bound``, ``novel``, and the model's own caveats (:mod:`scenescore.models.trust`
-says what each means)."""
+says what each means); and a note, no flag, when the examples leave the object's category free
+(``free``: :mod:`scenescore.models.freedom`)."""
 
 from __future__ import annotations
 
@@ -172,5 +173,19 @@ def assess(
         flags += _novel_flags(ref, seen, i)
         if seen.caveats is not None:
             flags += [CAVEAT + reason for reason in seen.caveats.reasons(cat)]
-        out[name] = Assessment(confidence, flags)
+        out[name] = Assessment(confidence, flags, _free_notes(ref, cat, seen.unit))
     return out
+
+
+def _free_notes(ref: TrustReference, cat: str, unit: str) -> list[str]:
+    """``free``: the examples leave the category's place free (:mod:`~scenescore.models.freedom`), so
+    the placement is one the data allows, not the one it shows."""
+    spread = ref.spread(cat)
+    if spread is None or not spread.free:
+        return []
+    if not math.isfinite(spread.spread):
+        return [f"free: one example scene alone shows a {cat}, so the examples do not pin its place down"]
+    return [
+        f"free: the examples leave a {cat}'s place free (they disagree by {spread.spread * ref.length_scale:.3g} "
+        f"{unit} at best, beside {spread.anchor})"
+    ]

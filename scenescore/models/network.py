@@ -11,6 +11,7 @@ nearest neighbours, ``(B, N, S, H)``, and the energy is a sum of per-object term
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Literal
 
@@ -406,11 +407,15 @@ class EnergyNet(nn.Module):
         rnd: Tensor | None,
         walls: Tensor | None,
         wall_edges: bool,
+        tap: Callable[[Tensor, Tensor, Tensor | None], None] | None = None,
     ) -> Tensor:
         """:meth:`_pooled` once the data's branches are settled: ``mask (B, N)``; ``rnd (B, N)`` the round
         objects, or None for none; ``walls (B, N)`` the wall nodes (a network with walls), and
         ``wall_edges`` whether any row has one. The same operations for any values of the tensors:
-        what :mod:`~scenescore.models.compiled` compiles."""
+        what :mod:`~scenescore.models.compiled` compiles. ``tap``: called with the edges the message
+        layers read, their weights (``(B, N, N or S, ...)``, ``(B, N, N or S)``) and the local graph's
+        ``index`` (None: dense), the tensors through which alone the poses act on the energy (:mod:`~scenescore.models.explain` splits the energy
+        by edge through their gradients)."""
         b, n, _ = poses.shape
         if nodes is None:
             assert feats is not None and sizes is not None, "EnergyNet: give feats and sizes, or nodes"
@@ -440,6 +445,8 @@ class EnergyNet(nn.Module):
             e = None
         else:
             e = self.edges(poses, rnd, walls if self.reads_walls else None, index)
+            if tap is not None:
+                tap(e, pair, index)
         for layer in self.layers:
             v = layer(v, e, pair, index)
         if self.cfg.local:  # each object's own term up to the head's last linear, summed

@@ -27,7 +27,10 @@ with the reason, when
   category placed no better than nearest neighbour (``validation``; the model's ``info.caveats``).
 
 A sampling solver's result adds one more (:mod:`scenescore.models.rivals`): another particle puts the
-object far away for nearly the same cost (``rival``).
+object far away for nearly the same cost (``rival``). A flagged object's flags end with the relation
+the learned energy holds it by that the examples bear out least (``relation``;
+:meth:`~scenescore.models.explain.Explanation.doubt`), and a placement of a category the examples
+leave free carries a note saying so (:mod:`scenescore.models.freedom`).
 
 It also keeps where the training data puts each category relative to each other one
 (:func:`relations`), from which placement draws candidate poses beside the scene's known objects
@@ -45,6 +48,7 @@ import numpy as np
 import torch
 
 from ..scene.scene import Scene
+from .freedom import BOUNDS, Spread, spreads
 from .layout import (
     BOUND_TOL,
     OVERLAP_TOL,
@@ -119,6 +123,19 @@ class TrustReference:
     # category -> other category -> the farthest any object of the category stands from the nearest object
     # of the other in a scene holding both (length scales; :func:`apart_limits`); None in older checkpoints
     apart: dict[str, dict[str, float]] | None = None
+    # category -> how far the examples disagree on its place at best (length scales; None: one scene
+    # shows it) and the anchor they agree best by (:mod:`~scenescore.models.freedom`); None in older
+    # checkpoints
+    spreads: dict[str, float | None] | None = None
+    spread_anchors: dict[str, str] | None = None
+
+    def spread(self, category: str) -> Spread | None:
+        """How well the examples pin ``category`` down (:class:`~scenescore.models.freedom.Spread`),
+        or None for an unseen category or an older checkpoint."""
+        if self.spreads is None or category not in self.spreads:
+            return None
+        v = self.spreads[category]
+        return Spread(math.inf if v is None else v, (self.spread_anchors or {}).get(category, BOUNDS))
 
     def may_touch_bounds(self, category: str) -> bool:
         """Whether an object of ``category`` pinned at a bound is where the data has them: some object of
@@ -223,6 +240,13 @@ class TrustReference:
                 isinstance(ref.apart, dict)
                 and all(isinstance(t, dict) and all(map(finite, t.values())) for t in ref.apart.values())
             ),
+            "spreads": ref.spreads is None
+            or (isinstance(ref.spreads, dict) and all(v is None or finite(v) for v in ref.spreads.values())),
+            "spread_anchors": ref.spread_anchors is None
+            or (
+                isinstance(ref.spread_anchors, dict)
+                and all(isinstance(v, str) for v in ref.spread_anchors.values())
+            ),
             "member_shares": ref.member_shares is None
             or (isinstance(ref.member_shares, list) and all(map(share_table, ref.member_shares))),
             "relations": ref.relations is None
@@ -267,13 +291,16 @@ class Assessment:
 
     confidence: float
     flags: list[str] = field(default_factory=list)
+    # what to know that is no reason to doubt the pose: the examples leave the object's category free
+    notes: list[str] = field(default_factory=list)
 
     @property
     def flagged(self) -> bool:
         return bool(self.flags)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"confidence": round(self.confidence, 4), "flags": list(self.flags)}
+        out: dict[str, Any] = {"confidence": round(self.confidence, 4), "flags": list(self.flags)}
+        return {**out, "notes": list(self.notes)} if self.notes else out
 
 
 def apart_distances(
@@ -343,6 +370,7 @@ def reference(
             for o, v in zip(s.objects, row):
                 table.setdefault(o.category, []).append(float(v))
     kept = [{c: evenly(sorted(v), MAX_SHARES) for c, v in sorted(t.items())} for t in tables]
+    pinned = spreads(scenes, length)
     return TrustReference(
         energies=sorted(energy_per_object(model, held_out or train)),
         length_scale=length,
@@ -357,4 +385,6 @@ def reference(
         shares=kept[0],
         member_shares=kept[1:] if size > 1 else None,
         apart=apart_limits(scenes, length),
+        spreads={c: v.spread if math.isfinite(v.spread) else None for c, v in pinned.items()},
+        spread_anchors={c: v.anchor for c, v in pinned.items()},
     )

@@ -104,15 +104,20 @@ def overlapping(model: ScoreModel, scene: Scene, names: list[str]) -> list[tuple
     return [by_label[v.label] for v in term.check(scene.poses(), FEASIBILITY_TOL)]
 
 
-def placement_problem(model: ScoreModel, scene: Scene, energy_only: bool = False) -> Problem:
+def placement_problem(
+    model: ScoreModel, scene: Scene, energy_only: bool = False, extra: Cost | None = None
+) -> Problem:
     """The problem :func:`place` solves, the unknown poses movable: the learned energy plus
-    :func:`non_overlap` (``energy_only``: the learned energy alone, the paper's protocol)."""
+    :func:`non_overlap` (``energy_only``: the learned energy alone, the paper's protocol), plus
+    ``extra`` when given (such as :class:`~scenescore.costs.ExampleRelations` of the example scenes)."""
     if not scene.unknown:
         raise SceneError("place: the scene has no object with an unknown pose (pose: null) to place")
     cost: Cost = LearnedEnergy(model)
     hinge = None if energy_only else non_overlap(model, scene)
     if hinge is not None:
         cost = cost + (OVERLAP_WEIGHT / model.config.length_scale) * hinge
+    if extra is not None:
+        cost = cost + extra
     return Problem(scene, cost, movable=scene.unknown, name="place")
 
 
@@ -295,6 +300,7 @@ def place(
     options: LangevinOptions | None = None,
     seed: int = 0,
     energy_only: bool = False,
+    extra: Cost | None = None,
 ) -> Scene:
     """Fill every ``null`` pose of ``scene`` (the others stay fixed); returns a new scene.
 
@@ -303,7 +309,7 @@ def place(
     model, seed and options (for several unknown objects, with ``init=in_turn(model, scene, opts,
     seed)`` and :func:`refining` options: descent from particles found one object at a time and moved in
     pairs). By default the placed objects keep off the others (:func:`non_overlap`); ``energy_only``
-    places by the learned energy alone. It runs on the model's device (``models.load(path,
+    places by the learned energy alone; ``extra``: a cost added to the problem (:func:`placement_problem`). It runs on the model's device (``models.load(path,
     device="cuda")``).
     """
     if not scene.unknown:
@@ -312,7 +318,7 @@ def place(
         opts = options or covering(PLACE, model, [scene])
         init = _starts(model, scene, opts, seed, energy_only)
         solver = LangevinSolver(opts if init is None else refining(opts))
-        r = solve(placement_problem(model, scene, energy_only), solver, init, seed=seed)
+        r = solve(placement_problem(model, scene, energy_only, extra), solver, init, seed=seed)
         return _filled(scene, r)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, cast
@@ -13,7 +14,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from ..costs.energy import LearnedEnergy
 from ..costs.guide import Alternatives, Verdict, guides, verdicts
+from ..models.explain import Explanation, explain
 from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene
@@ -101,6 +104,7 @@ class Result:
             )
         for name, a in self.confidence.items():
             lines.append(f"{name}: confidence {a.confidence:.2f}" + ("" if a.flags else " (in distribution)"))
+            lines += [f"{name}: {note}" for note in getattr(a, "notes", [])]
         lines += [f"warning: {w}" for w in self.warnings]
         if self.stages:
             lines.append(
@@ -110,6 +114,29 @@ class Result:
                 )
             )
         return "\n".join(lines)
+
+    def explain(self, name: str | None = None, scenes: Sequence[Scene] | None = None) -> Explanation:
+        """What holds the moving object ``name`` (default: the one moving object) at its found pose, by
+        the problem's learned energy: the well's depth and each neighbour's part in it
+        (:func:`scenescore.models.explain.explain`; ``scenes``: the example scenes, to name the ones
+        showing each relation)."""
+        if self.problem is None:
+            raise ValueError("this result carries no problem to explain")
+        energies = [c for _, c in self.problem.cost if isinstance(c, LearnedEnergy)]
+        if not energies or energies[0].visible_scene is None:  # a problem built on the energy binds it
+            raise ValueError(
+                "explain: the problem has no learned energy (a LearnedEnergy term) to explain by"
+            )
+        term = energies[0]
+        visible = term.visible_scene
+        assert visible is not None
+        scene = visible.with_poses(self.poses[term.visible])
+        moving = [scene.names[k] for k, i in enumerate(term.visible) if self.problem.movable_mask[i]]
+        if name is None:
+            if len(moving) != 1:
+                raise ValueError(f"explain: name the object to explain, one of {', '.join(moving) or 'none'}")
+            name = moving[0]
+        return explain(term.model, scene, name, scenes)
 
     def to_dict(self) -> dict[str, Any]:
         names = (

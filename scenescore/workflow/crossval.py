@@ -6,7 +6,7 @@ one model on all but each part and places that part's objects back with it; the 
 are pooled into one report (:func:`pooled`), which stands for the final model trained on every scene
 (:func:`~scenescore.workflow.training.train` does that, through :func:`train_and_cross_validate`,
 which trains the final model's networks and the folds' in one pool of worker processes). It costs
-``folds`` more trainings.
+``folds`` more trainings. Under six scenes each fold is one scene (leave one scene out).
 """
 
 from __future__ import annotations
@@ -34,6 +34,8 @@ from ..scene.scene import Scene, SceneError
 __all__ = [
     "CROSS_VALIDATE_BELOW",
     "FOLDS",
+    "LEAVE_ONE_OUT_FROM",
+    "MIN_SCENES",
     "fold_splits",
     "cross_validate",
     "train_and_cross_validate",
@@ -44,7 +46,8 @@ __all__ = [
 #: data of fewer scenes than this is validated by cross-validation (by default), not by one hold-out
 CROSS_VALIDATE_BELOW = 24
 FOLDS = 3  # the folds cross-validation makes by default: a third of the scenes held out at a time
-MIN_SCENES = 6  # fewer scenes are trained on without validation (two per fold at three folds)
+MIN_SCENES = 6  # fewer scenes are validated by leaving one scene out at a time (two per fold at three folds)
+LEAVE_ONE_OUT_FROM = 3  # the fewest scenes validated at all: each fold's model trains on two or more
 
 
 def _fits(n: int, folds: int) -> bool:
@@ -54,9 +57,10 @@ def _fits(n: int, folds: int) -> bool:
 
 def folds_for(n: int, folds: int | None, fraction: float, heldout_given: bool) -> int:
     """How many folds a training of ``n`` scenes validates with, 0 for one hold-out (or none): ``folds``
-    when given (1 meaning one hold-out); else :data:`FOLDS` for fewer than :data:`CROSS_VALIDATE_BELOW`
-    scenes and at least :data:`MIN_SCENES`, when no held-out scenes were given and ``fraction`` holds
-    some out. SceneError for folds asked of data too small for them, or beside held-out scenes given or
+    when given (1 meaning one hold-out); else, when no held-out scenes were given and ``fraction`` holds
+    some out, :data:`FOLDS` for fewer than :data:`CROSS_VALIDATE_BELOW` scenes and at least
+    :data:`MIN_SCENES`, and ``n`` (leave one scene out) for fewer than that and at least
+    :data:`LEAVE_ONE_OUT_FROM`. SceneError for folds asked of data too small for them, or beside held-out scenes given or
     a ``fraction`` of 0."""
     if folds is not None and folds >= 2:
         if heldout_given or fraction == 0:
@@ -67,6 +71,8 @@ def folds_for(n: int, folds: int | None, fraction: float, heldout_given: bool) -
         return folds
     if heldout_given or fraction == 0 or folds is not None:
         return 0
+    if LEAVE_ONE_OUT_FROM <= n < MIN_SCENES:  # leave one scene out: each fold's model trains on the rest
+        return n
     return FOLDS if MIN_SCENES <= n < CROSS_VALIDATE_BELOW else 0
 
 

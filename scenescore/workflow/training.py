@@ -10,6 +10,7 @@ The command line only reads its files and calls :func:`train`, so the model a sc
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -33,9 +34,11 @@ from ..learn.loop import fit
 from ..learn.members import Group, Job, member_state, train_groups
 from ..learn.run import Run
 from ..models import ScoreModel
+from ..models.freedom import describe_spreads
 from ..planning.tidying.calibration import defer
 from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene, write_jsonl
+from ..scene.units import length_unit
 from ..viz.plot import training_figure
 from .crossval import folds_for, train_and_cross_validate
 
@@ -145,7 +148,8 @@ def train(
     # keep_state: a run killed before the checkpoint is written resumes with no more training
     job = Job(encoder, progress, held, device, replace(run, keep_state=True))
     if k:  # the final model and the folds' models train side by side
-        say(f"{len(scenes)} scenes: validating by {k}-fold cross-validation ({k} more trainings)")
+        how = "leaving one scene out at a time" if k == len(scenes) else f"{k}-fold cross-validation"
+        say(f"{len(scenes)} scenes: validating by {how} ({k} more trainings)")
         final, folded = train_and_cross_validate(scenes, cfg, k, job, seed=seed, say=say)
         assert final is not None
         model = final
@@ -164,6 +168,7 @@ def train(
         raise NothingLearned(info.final_loss, info.chance_loss)
     record: dict[str, Any] = {"checkpoint": None if out_path is None else str(out_path)}
     record["training"] = info.training()
+    record["pinned"] = _pinned(model, scenes, say)
     examples: list[Any] = []
     if held:
         ev = evaluate(
@@ -182,6 +187,25 @@ def train(
     _save(model, out_path, out.report, record, say)
     _remove_state(run.state, cfg.members)
     return model
+
+
+def _pinned(model: ScoreModel, scenes: Sequence[Scene], say: Log) -> dict[str, Any] | None:
+    """Say which categories the examples pin down and which they leave free (the trust reference's
+    spreads, :mod:`~scenescore.models.freedom`); the report's record of it."""
+    ref = model.trust
+    if ref is None or ref.spreads is None:
+        return None
+    table = {c: s for c in ref.spreads if (s := ref.spread(c)) is not None}
+    for line in describe_spreads(table, ref.length_scale, length_unit(scenes[0])):
+        say(line)
+    return {
+        c: {
+            "spread": None if not math.isfinite(s.spread) else s.spread * ref.length_scale,
+            "anchor": s.anchor,
+            "free": s.free,
+        }
+        for c, s in table.items()
+    }
 
 
 def _remove_state(state: str | os.PathLike | None, members: int) -> None:
@@ -212,7 +236,7 @@ def _adopt(
     if log_dir is not None:
         log_validation(log_dir, ev.to_dict(), cfg.iterations - 1)
     how = (
-        f"{ev.scenes} scenes, each held out once ({ev.folds}-fold cross-validation; seed {ev.seed})"
+        f"{ev.scenes} scenes, each held out once ({ev.cross_validation}; seed {ev.seed})"
         if ev.folds
         else f"{ev.scenes} held-out scenes (seed {ev.seed})"
     )

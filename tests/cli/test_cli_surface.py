@@ -16,7 +16,18 @@ from scenescore.errors import ConfigError
 from scenescore.learn import NetworkConfig, TrainConfig
 from scenescore.models import load
 
-MODEL_COMMANDS = ["train", "evaluate", "place", "tidy", "heatmap", "demo", "solve", "compare", "experiment"]
+MODEL_COMMANDS = [
+    "train",
+    "evaluate",
+    "place",
+    "tidy",
+    "heatmap",
+    "explain",
+    "demo",
+    "solve",
+    "compare",
+    "experiment",
+]
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
