@@ -284,6 +284,11 @@ def test_a_deferred_calibration_is_measured_at_the_first_tidy_and_kept_for_the_n
     assert again.info.tidy == now.info.tidy
     with pytest.raises(TidyError, match="no scene with every pose known"):
         calibration.defer(model, [scenes[0].without("red")])
+    # other code (an upgrade) measures again: the cache's key holds the code's version
+    upgraded = load(tmp_path / "m.ckpt")
+    monkeypatch.setattr(calibration, "code_version", lambda: "scenescore 99; source other")
+    with pytest.raises(AssertionError, match="measured again"):
+        calibration.ensure_calibrated(upgraded)
 
 
 def test_swap_draws_put_each_pair_in_each_others_places():

@@ -12,6 +12,7 @@ import numpy as np
 
 from ...models import ScoreModel, TidyCalibration
 from ...runtime.cache import cache_folder
+from ...runtime.provenance import code_version
 from ...runtime.threads import torch_threads
 from ...scene.outputs import atomic_write_text
 from ...scene.scene import Scene
@@ -90,8 +91,8 @@ def defer(model: ScoreModel, scenes: Sequence[Scene], seed: int = 0) -> None:
 
 def ensure_calibrated(model: ScoreModel, say: Callable[[str], None] | None = None) -> None:
     """Measure a deferred calibration (:func:`defer`) now, once per model on this machine: the gains of a
-    model's scenes are kept in the user's cache folder (``tidy/``, keyed by the model's weights and its
-    scenes), so a later tidy with the same checkpoint reads them. ``say``: told when it measures."""
+    model's scenes are kept in the user's cache folder (``tidy/``, keyed by the model's weights, its
+    scenes and the code), so a later tidy with the same checkpoint reads them. ``say``: told when it measures."""
     stored = model.info.tidy
     if stored is None or stored.pending is None:
         return
@@ -112,8 +113,9 @@ def ensure_calibrated(model: ScoreModel, say: Callable[[str], None] | None = Non
 
 
 def _key(model: ScoreModel, stored: TidyCalibration) -> str:
-    """A digest of what a calibration depends on: the networks' weights, the scenes and the seed."""
-    h = hashlib.sha256()
+    """A digest of what a calibration depends on: the networks' weights, the scenes, the seed and the
+    code (:func:`~scenescore.runtime.provenance.code_version`), so that an upgrade measures again."""
+    h = hashlib.sha256(code_version().encode())
     for name, tensor in sorted(model.net.state_dict().items()):
         h.update(name.encode() + b"\0" + tensor.detach().cpu().contiguous().numpy().tobytes())
     h.update(json.dumps([stored.pending, stored.seed], sort_keys=True).encode())
