@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Literal
 
 import casadi as ca
@@ -17,12 +17,12 @@ from ..models.explain import explain
 from ..models.flags import assess
 from ..models.model import with_walls
 from ..models.rivals import rivals
-from ..models.trust import Assessment, outside_data
+from ..models.trust import CAVEAT, Assessment, outside_data
 from ..runtime import draw
 from ..scene.scene import Scene
 from ..scene.units import length_unit
 from .base import Cost, CostError, check_scene_names
-from .guide import Alternatives, Guide
+from .guide import Alternatives, Guide, Verdict
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
 
@@ -145,14 +145,18 @@ class LearnedEnergy(Cost, Guide):
         unit = length_unit(self.visible_scene)
         return {moving[k]: r.reason(unit) for k, r in found.items()}
 
-    def doubted(self, poses: np.ndarray, names: Sequence[str]) -> dict[str, str]:
-        """For each flagged object of ``names`` the energy sees, the relation it doubts: the strongest
-        of the energy's holds on the object that no example shows, else the strongest, with how the
-        examples bear it out (:meth:`~scenescore.models.explain.Explanation.doubt`)."""
+    def doubted(self, poses: np.ndarray, flagged: Mapping[str, Verdict]) -> dict[str, str]:
+        """For each object the energy sees that a flag doubts (the model's own caveats about its
+        training are no doubt of the pose), the relation it doubts: the strongest of the energy's holds
+        on the object that no example shows, else the strongest, with how the examples bear it out
+        (:meth:`~scenescore.models.explain.Explanation.doubt`)."""
         if self.visible_scene is None or self.model.config.absolute:
             return {}
         scene = self.visible_scene.with_poses(np.asarray(poses)[self.visible])
-        return {n: "relation: " + explain(self.model, scene, n).doubt() for n in names if n in scene.names}
+        doubted = [
+            n for n, v in flagged.items() if n in scene.names and any(not f.startswith(CAVEAT) for f in v.flags)
+        ]
+        return {n: "relation: " + explain(self.model, scene, n).doubt() for n in doubted}
 
     def doubts(self, poses: Tensor) -> Tensor | None:
         """Rows that put a moving object the energy sees where the model's data never had one of its

@@ -17,7 +17,7 @@ poses its training data has.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -76,9 +76,10 @@ class Guide:
         reason by object name (an object this term gives a verdict on); {}: none."""
         return {}
 
-    def doubted(self, poses: np.ndarray, names: Sequence[str]) -> Mapping[str, str]:
-        """For the flagged moving objects ``names`` at ``poses (N, 3)``: the reason this term holds each
-        one where it is, said as the flag to add (``relation: ...``); {}: nothing to say."""
+    def doubted(self, poses: np.ndarray, flagged: Mapping[str, Verdict]) -> Mapping[str, str]:
+        """For the flagged moving objects at ``poses (N, 3)`` (``flagged``: their verdicts, by name): the
+        reason this term holds each one where it is, said as the flag to add (``relation: ...``); {}:
+        nothing to say."""
         return {}
 
 
@@ -117,7 +118,7 @@ def verdicts(cost: Sum, poses: np.ndarray, alternatives: Alternatives | None = N
             for name, reason in g.rivals(poses, alternatives).items():
                 if name in mine:
                     mine[name].flags.append(reason)
-        flagged = [name for name, v in mine.items() if v.flags]
+        flagged = {name: v for name, v in mine.items() if v.flags}
         for name, reason in (g.doubted(poses, flagged) if flagged else {}).items():
             mine[name].flags.append(reason)
         out.update(mine)

@@ -51,7 +51,7 @@ printf '%s\\n' "${{COMPREPLY[@]}}"
 @pytest.mark.skipif(shutil.which("bash") is None, reason="no bash")
 def test_bash_completes_commands_options_and_values(capsys):
     script = _script("bash", capsys)
-    assert sorted(_complete(script, ["scenescore", "ex"])) == ["experiment", "export"]
+    assert sorted(_complete(script, ["scenescore", "ex"])) == ["experiment", "explain", "export"]
     assert "missing" in _complete(script, ["scenescore", "experiment", ""])
     assert sorted(_complete(script, ["scenescore", "experiment", "--see"])) == ["--seed", "--seeds"]
     assert sorted(_complete(script, ["scenescore", "train", "d.jsonl", "--activation", ""])) == [
