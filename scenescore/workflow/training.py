@@ -46,6 +46,7 @@ __all__ = ["NothingLearned", "Outputs", "Validation", "holdout", "train"]
 
 Log = Callable[[str], None]
 TIDY_SCENES = 16  # training scenes calibrated on when none are held out
+FEW_SCENES = 12  # with this many scenes or fewer, train suggests placing with the examples' relations
 
 
 class NothingLearned(ValueError):
@@ -169,6 +170,12 @@ def train(
     record: dict[str, Any] = {"checkpoint": None if out_path is None else str(out_path)}
     record["training"] = info.training()
     record["pinned"] = _pinned(model, scenes, say)
+    if len(scenes) <= FEW_SCENES:
+        data = out.source if out.source is not None else "DATA.jsonl"
+        say(
+            f"with {len(scenes)} examples, `scenescore place MODEL SCENE --examples {data}` adds their own "
+            "relations to the learned energy (docs/your-data.md, \"A handful of examples\")"
+        )
     examples: list[Any] = []
     if held:
         ev = evaluate(
