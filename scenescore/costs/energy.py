@@ -154,7 +154,9 @@ class LearnedEnergy(Cost, Guide):
             return {}
         scene = self.visible_scene.with_poses(np.asarray(poses)[self.visible])
         doubted = [
-            n for n, v in flagged.items() if n in scene.names and any(not f.startswith(CAVEAT) for f in v.flags)
+            n
+            for n, v in flagged.items()
+            if n in scene.names and any(not f.startswith(CAVEAT) for f in v.flags)
         ]
         return {n: "relation: " + explain(self.model, scene, n).doubt() for n in doubted}
 

@@ -174,7 +174,7 @@ def train(
         data = out.source if out.source is not None else "DATA.jsonl"
         say(
             f"with {len(scenes)} examples, `scenescore place MODEL SCENE --examples {data}` adds their own "
-            "relations to the learned energy (docs/your-data.md, \"A handful of examples\")"
+            'relations to the learned energy (docs/your-data.md, "A handful of examples")'
         )
     examples: list[Any] = []
     if held:
