@@ -169,13 +169,7 @@ def train(
         raise NothingLearned(info.final_loss, info.chance_loss)
     record: dict[str, Any] = {"checkpoint": None if out_path is None else str(out_path)}
     record["training"] = info.training()
-    record["pinned"] = _pinned(model, scenes, say)
-    if len(scenes) <= FEW_SCENES:
-        data = out.source if out.source is not None else "DATA.jsonl"
-        say(
-            f"with {len(scenes)} examples, `scenescore place MODEL SCENE --examples {data}` adds their own "
-            'relations to the learned energy (docs/your-data.md, "A handful of examples")'
-        )
+    record["pinned"] = _pinned(model, scenes, out.source, say)
     examples: list[Any] = []
     if held:
         ev = evaluate(
@@ -196,9 +190,18 @@ def train(
     return model
 
 
-def _pinned(model: ScoreModel, scenes: Sequence[Scene], say: Log) -> dict[str, Any] | None:
+def _pinned(
+    model: ScoreModel, scenes: Sequence[Scene], source: str | os.PathLike | None, say: Log
+) -> dict[str, Any] | None:
     """Say which categories the examples pin down and which they leave free (the trust reference's
-    spreads, :mod:`~scenescore.models.freedom`); the report's record of it."""
+    spreads, :mod:`~scenescore.models.freedom`), and, for :data:`FEW_SCENES` or fewer, how to place
+    with the examples' own relations (``source``: the data's file); the report's record of it."""
+    if len(scenes) <= FEW_SCENES:
+        data = source if source is not None else "DATA.jsonl"
+        say(
+            f"with {len(scenes)} examples, `scenescore place MODEL SCENE --examples {data}` adds their own "
+            'relations to the learned energy (docs/your-data.md, "A handful of examples")'
+        )
     ref = model.trust
     if ref is None or ref.spreads is None:
         return None
