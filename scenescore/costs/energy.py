@@ -13,7 +13,7 @@ from torch import Tensor
 from ..geometry.poses import compose_poses
 from ..models import ScoreModel
 from ..models.casadi import energy_mx
-from ..models.explain import explain
+from ..models.explain import Explanation, explain
 from ..models.flags import assess
 from ..models.model import with_walls
 from ..models.rivals import rivals
@@ -113,16 +113,35 @@ class LearnedEnergy(Cost, Guide):
         """The names of the movable objects that the energy sees."""
         return [self.binding.scene.names[i] for i in self.visible if self.binding.movable[i]]
 
+    def _seen_at(self, poses: np.ndarray) -> Scene | None:
+        """The scene the energy sees, at the bound scene's ``poses (N, 3)``; None when unbound."""
+        if self.visible_scene is None:
+            return None
+        return self.visible_scene.with_poses(np.asarray(poses)[self.visible])
+
     def verdicts(self, poses: np.ndarray) -> dict[str, Assessment]:
         """Confidence and flags of the moving objects the energy sees, against the model's trust reference."""
-        ref = self.model.trust
-        if ref is None or self.visible_scene is None:
+        ref, scene = self.model.trust, self._seen_at(poses)
+        if ref is None or scene is None:
             return {}
-        vis, moving = self.visible, self._moving()
-        if not moving:
-            return {}
-        scene = self.visible_scene.with_poses(np.asarray(poses)[vis])
-        return assess(ref, self.model, scene, moving)
+        moving = self._moving()
+        return assess(ref, self.model, scene, moving) if moving else {}
+
+    def explain(
+        self, poses: np.ndarray, name: str | None = None, scenes: Sequence[Scene] | None = None
+    ) -> Explanation:
+        """What holds the moving object ``name`` (default: the one moving object the energy sees) at
+        ``poses (N, 3)`` of the bound scene (:func:`~scenescore.models.explain.explain`; ``scenes``: the
+        example scenes, to name the ones showing each relation)."""
+        scene = self._seen_at(poses)
+        if scene is None:
+            raise CostError(f"LearnedEnergy {self.name!r}: bind it to a scene before explaining")
+        if name is None:
+            moving = self._moving()
+            if len(moving) != 1:
+                raise ValueError(f"explain: name the object to explain, one of {', '.join(moving) or 'none'}")
+            name = moving[0]
+        return explain(self.model, scene, name, scenes)
 
     def rivals(self, poses: np.ndarray, alternatives: Alternatives) -> dict[str, str]:
         """The moving objects that another of the ``alternatives`` puts more than
@@ -150,9 +169,9 @@ class LearnedEnergy(Cost, Guide):
         training are no doubt of the pose), the relation it doubts: the strongest of the energy's holds
         on the object that no example shows, else the strongest, with how the examples bear it out
         (:meth:`~scenescore.models.explain.Explanation.doubt`)."""
-        if self.visible_scene is None or self.model.config.absolute:
+        scene = self._seen_at(poses)
+        if scene is None or self.model.config.absolute:
             return {}
-        scene = self.visible_scene.with_poses(np.asarray(poses)[self.visible])
         doubted = [
             n
             for n, v in flagged.items()

@@ -2,13 +2,16 @@
 
 The object's well is how much the energy rises when the object alone moves away: the mean rise over
 :data:`DIRECTIONS` displacements on each of the rings :data:`RINGS` (in length scales), its heading
-kept. A neighbour's part in the well is the well's depth with the neighbour minus its depth in the same
-scene without it: positive, the neighbour holds the object where it is; negative, it pushes the object
-off. The parts need not add up to the depth (the network reads its neighbours together); what they leave
-is the rest. Each relation is said as the object's place in the neighbour's frame (a round neighbour,
-which has no heading, by the distance alone), and beside it how many of the example pairs of the two
-categories that the model saw (its trust reference's relations) stand within :data:`MATCH` length
-scales of it, or, given the example scenes, which of them show it.
+kept. The poses act on the energy only through the edges the message layers read, so along each
+displacement's straight path the rise is the sum, over the edges between the object and each other
+node, of the gradient with respect to the edge times the edge's change (integrated gradients,
+:data:`STEPS` trapezoids in float64; an ensemble's parts are its members' mean). A neighbour's part is
+that of its two edges: positive, the neighbour holds the object where it is; negative, it pushes the
+object off; the parts, the walls' and a small rest add up to the depth. Each relation is said as the
+object's place in the neighbour's frame (a round neighbour, which has no heading, by the distance
+alone), and beside it how many of the example pairs of the two categories that the model saw (its trust
+reference's relations) stand within :data:`MATCH` length scales of it, or, given the example scenes,
+which of them show it.
 """
 
 from __future__ import annotations
@@ -22,7 +25,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..scene.scene import Scene
+from ..geometry.poses import relative_poses
+from ..scene.scene import Scene, wrap_angle
 from ..scene.units import length_unit
 from .ensemble import members_of
 from .model import with_walls
@@ -230,19 +234,24 @@ def _trapezoids(v: torch.Tensor, g: torch.Tensor, m: int, k: int) -> torch.Tenso
     return 0.5 * (g[:, 1:] + g[:, :-1]) * (v[:, 1:] - v[:, :-1])
 
 
+def _in_frames(p: np.ndarray) -> np.ndarray:
+    """Every pose of ``p (N, 3)`` in every other's frame: ``(anchor, object, 3)``, the heading wrapped
+    to [-pi, pi)."""
+    t = torch.as_tensor(p, dtype=torch.float64)
+    rel = relative_poses(t[:, None], t[None, :])
+    rel[..., 2] = wrap_angle(rel[..., 2])
+    return rel.numpy()
+
+
 def _said(scene: Scene, i: int, j: int, unit: str) -> tuple[tuple[float, float, float], str]:
     """Where object ``i`` stands in object ``j``'s frame, and in words."""
-    p = scene.poses()
-    d = p[i, :2] - p[j, :2]
-    c, s = math.cos(p[j, 2]), math.sin(p[j, 2])
-    x, y = c * d[0] + s * d[1], -s * d[0] + c * d[1]
-    h = math.remainder(float(p[i, 2] - p[j, 2]), 2 * math.pi)
+    x, y, h = (float(v) for v in _in_frames(scene.poses()[[j, i]])[0, 1])
     dist = math.hypot(x, y)
     name = scene.objects[j].name
     if scene.objects[j].round:
-        return (float(x), float(y), h), f"{dist:.3g} {unit} from {name}"
+        return (x, y, h), f"{dist:.3g} {unit} from {name}"
     side = ("+x" if x > 0 else "-x") if abs(x) >= abs(y) else ("+y" if y > 0 else "-y")
-    return (float(x), float(y), h), f"{dist:.3g} {unit} on {name}'s {side} side"
+    return (x, y, h), f"{dist:.3g} {unit} on {name}'s {side} side"
 
 
 def _close(a: np.ndarray, b: np.ndarray, round_anchor: bool, tol: float) -> np.ndarray:
@@ -259,14 +268,14 @@ def _shown_in_scenes(
     of an object of ``anchor``."""
 
     def shows(s: Scene) -> bool:
-        pairs = [
-            (i, j)
-            for i, o in enumerate(s.objects)
-            for j, a in enumerate(s.objects)
-            if i != j and o.category == cat and a.category == anchor
-        ]
-        return any(
-            _close(np.asarray([_said(s, i, j, "")[0][:2]]), rel, round_anchor, tol)[0] for i, j in pairs
+        cats = np.array([o.category for o in s.objects])
+        anchors, objs = np.flatnonzero(cats == anchor), np.flatnonzero(cats == cat)
+        if not len(anchors) or not len(objs):
+            return False
+        frames = _in_frames(s.poses())
+        pairs = [(a, o) for a in anchors for o in objs if a != o]
+        return bool(pairs) and bool(
+            _close(np.array([frames[a, o, :2] for a, o in pairs]), rel, round_anchor, tol).any()
         )
 
     return [k for k, s in enumerate(scenes) if shows(s)]
@@ -299,8 +308,9 @@ def explain(
     neighbours: int = NEIGHBOURS,
 ) -> Explanation:
     """What holds ``name`` of ``scene`` (every pose known) where it stands, by ``model``'s energy: the
-    well's depth and the part of each of the ``neighbours`` objects nearest to it (see the module's
-    description). ``scenes``: the example scenes, to name the ones showing each relation."""
+    well's depth and the relations of the ``neighbours`` objects with the largest parts in it (see the
+    module's description), the others' summed. ``scenes``: the example scenes, to name the ones
+    showing each relation."""
     if name not in scene.names:
         raise KeyError(f"explain: no object {name!r} in the scene (it has {', '.join(scene.names)})")
     if scene.unknown:

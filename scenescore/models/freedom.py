@@ -18,7 +18,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
+from ..geometry.poses import relative_poses
 from ..scene.scene import Scene
 
 __all__ = ["BOUNDS", "FREE_SPREAD", "Spread", "spreads", "describe_spreads"]
@@ -40,31 +42,35 @@ class Spread:
         return not self.spread <= FREE_SPREAD
 
 
-def _readings(
-    scenes: Sequence[Scene], category: str, anchor: str, length: float
-) -> list[tuple[int, np.ndarray]]:
-    """``(scene index, reading (2,))`` of every object of ``category`` relative to the nearest ``anchor``
-    of its scene (see the module's description)."""
-    out = []
+Readings = dict[tuple[str, str], list[tuple[int, np.ndarray]]]
+
+
+def _readings(scenes: Sequence[Scene], length: float) -> Readings:
+    """``{(category, anchor): [(scene index, reading (2,)), ...]}``: every object read relative to the
+    nearest object of each anchor category in its scene, and to the bounds (see the module's
+    description), each scene's relative poses and distances computed once."""
+    out: Readings = {}
     for k, s in enumerate(scenes):
         p = s.poses()
-        for i, o in enumerate(s.objects):
-            if o.category != category:
-                continue
-            if anchor == BOUNDS:
-                centre = (np.asarray(s.bounds[0]) + np.asarray(s.bounds[1])) / 2
-                out.append((k, (p[i, :2] - centre) / length))
-                continue
-            js = [j for j, a in enumerate(s.objects) if a.category == anchor and j != i]
-            if not js:
-                continue
-            j = min(js, key=lambda j: float(np.hypot(*(p[j, :2] - p[i, :2]))))
-            d = p[i, :2] - p[j, :2]
-            if s.objects[j].round:
-                out.append((k, np.array([math.hypot(*d), 0.0]) / length))
-                continue
-            c, sn = math.cos(p[j, 2]), math.sin(p[j, 2])
-            out.append((k, np.array([c * d[0] + sn * d[1], -sn * d[0] + c * d[1]]) / length))
+        t = torch.as_tensor(p, dtype=torch.float64)
+        frames = relative_poses(t[:, None], t[None, :]).numpy()  # (anchor, object, 3)
+        dist = np.hypot(*(p[None, :, :2] - p[:, None, :2]).transpose(2, 0, 1))
+        np.fill_diagonal(dist, np.inf)
+        cats = np.array([o.category for o in s.objects])
+        centre = (np.asarray(s.bounds[0]) + np.asarray(s.bounds[1])) / 2
+        for i, c in enumerate(cats):
+            out.setdefault((str(c), BOUNDS), []).append((k, (p[i, :2] - centre) / length))
+            for a in dict.fromkeys(cats):
+                js = np.flatnonzero(cats == a)
+                js = js[js != i]
+                if not len(js):
+                    continue
+                j = int(js[np.argmin(dist[i, js])])
+                if s.objects[j].round:
+                    reading = np.array([dist[i, j], 0.0]) / length
+                else:
+                    reading = frames[j, i, :2] / length
+                out.setdefault((str(c), str(a)), []).append((k, reading))
     return out
 
 
@@ -83,11 +89,12 @@ def spreads(scenes: Sequence[Scene], length: float) -> dict[str, Spread]:
     """Each category's :class:`Spread` in ``scenes`` (every pose known), ``length``: the data's length
     scale. Ties between anchors go to the bounds, then to the anchor category first in sorted order."""
     cats = sorted({o.category for s in scenes for o in s.objects})
+    readings = _readings(scenes, length)
     out = {}
     for c in cats:
         best = Spread(math.inf, BOUNDS)
         for a in [BOUNDS, *cats]:
-            v = _spread(_readings(scenes, c, a, length))
+            v = _spread(readings.get((c, a), []))
             if v < best.spread:
                 best = Spread(v, a)
         out[c] = best

@@ -16,7 +16,7 @@ from torch import Tensor
 
 from ..costs.energy import LearnedEnergy
 from ..costs.guide import Alternatives, Verdict, guides, verdicts
-from ..models.explain import Explanation, explain
+from ..models.explain import Explanation
 from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene
@@ -123,20 +123,11 @@ class Result:
         if self.problem is None:
             raise ValueError("this result carries no problem to explain")
         energies = [c for _, c in self.problem.cost if isinstance(c, LearnedEnergy)]
-        if not energies or energies[0].visible_scene is None:  # a problem built on the energy binds it
+        if not energies:
             raise ValueError(
                 "explain: the problem has no learned energy (a LearnedEnergy term) to explain by"
             )
-        term = energies[0]
-        visible = term.visible_scene
-        assert visible is not None
-        scene = visible.with_poses(self.poses[term.visible])
-        moving = [scene.names[k] for k, i in enumerate(term.visible) if self.problem.movable_mask[i]]
-        if name is None:
-            if len(moving) != 1:
-                raise ValueError(f"explain: name the object to explain, one of {', '.join(moving) or 'none'}")
-            name = moving[0]
-        return explain(term.model, scene, name, scenes)
+        return energies[0].explain(self.poses, name, scenes)
 
     def to_dict(self) -> dict[str, Any]:
         names = (
