@@ -14,7 +14,9 @@ many of the catastrophic ones were flagged. A last line per config counts the sc
 oracle and the catastrophic placements in all, and one more pools the trust check over the scenarios:
 the catastrophic placements flagged (and how many by the ``rival`` flag) and the good ones flagged. ``--cache DIR`` keeps the trained models there for
 every config and later runs: an ensemble's first member is the single model of its seed, so
-``--configs '[{"members": 3}, {}]'`` trains the single models once. ``--train-scenes 12``: the zoo's
+``--configs '[{"members": 3}, {}]'`` trains the single models once; a snapshot ensemble's member 0 is
+the single model too, and ``--singles-from '{"members": 3, "ensemble": "snapshots"}'`` takes the single
+models from those in the cache instead of training them again. ``--train-scenes 12``: the zoo's
 small-data variant.
 ``--place`` changes placement's options for every config (a JSON object of ``LangevinOptions`` fields
 over ``scenescore.planning.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
@@ -37,10 +39,17 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import torch
+
 from scenescore.experiments.execution import Execution
 from scenescore.experiments.zoo import run
 from scenescore.experiments.zoo_verdicts import Cases, catastrophic, good, trust_line
-from scenescore.learn import VALIDATION_FRACTION, TrainConfig
+from scenescore.learn import VALIDATION_FRACTION, TrainConfig, split_validation
+from scenescore.learn.cache import cached_path
+from scenescore.models import ScoreModel, load
+from scenescore.models.ensemble import members_of
+from scenescore.models.trust import reference
+from scenescore.scenarios import get
 from scenescore.planning.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
 from scenescore.scene.outputs import atomic_write_text
@@ -79,6 +88,13 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=None, help="a model cache folder shared by the configs")
     ap.add_argument("--train-scenes", type=int, default=None, help="train on the first N training scenes")
     ap.add_argument(
+        "--singles-from",
+        default=None,
+        help="a JSON object of TrainConfig overrides with ensemble snapshots: before each config of one "
+        "network runs, the --cache gets its models from those snapshot ensembles' member 0 (the same "
+        "network: the run is the same up to the first snapshot), each with its own trust reference",
+    )
+    ap.add_argument(
         "--records",
         type=Path,
         default=None,
@@ -105,6 +121,8 @@ def main() -> None:
     summary = []
     for k, overrides in enumerate(configs):
         t0 = time.perf_counter()
+        if args.singles_from is not None and args.cache is not None:
+            singles_from_snapshots(args, scenarios, TrainConfig(**json.loads(args.singles_from)), overrides)
         res = run(
             args.seeds,
             scenarios,
@@ -140,6 +158,34 @@ def main() -> None:
     print()
     for line in summary:
         print(line)
+
+
+def singles_from_snapshots(
+    args: argparse.Namespace, scenarios: list[str], snap: TrainConfig, overrides: dict[str, Any]
+) -> None:
+    """Put in ``--cache`` the single model of ``overrides`` for every pair whose snapshot ensemble
+    ``snap`` is there and whose single model is not: member 0 of the ensemble, with the single model's
+    settings and a trust reference of its own (as ``fit`` computes it)."""
+    single = TrainConfig(**overrides)
+    if single.members != 1 or snap.snapshots == 0 or replace(snap, members=1, ensemble="seeds") != single:
+        return
+    cpu = torch.device("cpu")
+    for name in scenarios:
+        for seed in range(args.seeds):
+            train_s, _ = get(name).split(seed)
+            train_s = train_s[: args.train_scenes] if args.train_scenes is not None else train_s
+            train_s, held = split_validation(train_s, args.val, seed=seed)
+            src = cached_path(args.cache, train_s, snap, None, seed, held, cpu)
+            dst = cached_path(args.cache, train_s, single, None, seed, held, cpu)
+            if src is None or dst is None or not src.exists() or dst.exists():
+                continue
+            ens = load(src)
+            model = ScoreModel(members_of(ens.net)[0], ens.encoder)
+            model.info = replace(ens.info, train_config=single.to_dict(), members=None, seconds=None)
+            model.info.final_loss = ens.info.members[0]["final_loss"]
+            model.info.trust = reference(model, train_s, held, single.feature_noise)
+            model.save(dst)
+            print(f"{name} seed {seed}: the single model from its snapshot ensemble's member 0", file=sys.stderr)
 
 
 def read_cases(path: str | os.PathLike) -> dict[str, list[dict[str, Any]]]:

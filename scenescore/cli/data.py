@@ -84,7 +84,8 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="train an ensemble of this many networks (seeds SEED, SEED+1000, ...): their mean energy "
         "places, and a placed object the members disagree on is flagged; members times the training "
-        "time (default 1)",
+        "time (default 1; --set ensemble=snapshots takes the members from one run instead, "
+        "1 + (members - 1) x snapshot_cycle times the training)",
     )
     p.add_argument(
         "--activation",

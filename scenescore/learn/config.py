@@ -37,6 +37,7 @@ __all__ = [
 
 Graph = Literal["auto", "dense", "local"]
 Compile = Literal["auto", "on", "off"]
+Ensemble = Literal["seeds", "snapshots"]
 #: the training work (edge evaluations: pose sets x objects x the objects each reads, over the chains'
 #: steps and the loss's passes) from which ``compile="auto"`` compiles: below it the cold compile costs
 #: more than the compiled passes save (``benchmarks/bench_training.py`` measures both)
@@ -146,11 +147,16 @@ class TrainConfig:
     # decay is lowered to 1 - 3 / (its averaged iterations), so that the weights of the average's first
     # iteration weigh at most e^-3 (0.99 from 600 iterations)
     average: float = 0.99
-    # an ensemble: the energy is the mean of this many networks, member m trained with seed
-    # seed + 1000 m (member 0 is the single model of the seed); where the members disagree about a
-    # placed object, its placement is flagged (scenescore.models.ensemble). Training takes members times
-    # as long
+    # an ensemble: the energy is the mean of this many networks; where the members disagree about a
+    # placed object, its placement is flagged (scenescore.models.ensemble). Member 0 is the single model
+    # of the seed either way
     members: int = 1
+    # where the other members come from: "seeds", member m trained apart with seed seed + 1000 m
+    # (members times the training); "snapshots", one run going on after member 0 for members - 1 cycles
+    # of snapshot_cycle x iterations each, the learning rate restarted at each cycle's start and the
+    # cycle's weights averaged over its second half (1 + (members - 1) x snapshot_cycle times the training)
+    ensemble: Ensemble = "seeds"
+    snapshot_cycle: float = 0.25
     # the network's passes compiled while it trains (torch.compile; scenescore.models.compiled): "on",
     # "off" (eager), or "auto": when the training's work is large enough (COMPILE_FROM) that compiling
     # pays for itself on a machine whose compiled-kernel cache is empty, a compiler is there and, on a
@@ -173,6 +179,9 @@ class TrainConfig:
         check_number(own, "reanchored", self.reanchored, 0, 100_000, integer=True)
         check_number(own, "neighbours", self.neighbours, 1, 1024, integer=True)
         check_number(own, "members", self.members, 1, MAX_MEMBERS, integer=True)
+        if self.ensemble not in get_args(Ensemble):
+            raise ConfigError(f"{own}: ensemble: expected 'seeds' or 'snapshots', got {self.ensemble!r}")
+        check_number(own, "snapshot_cycle", self.snapshot_cycle, 0, 1, open_lo=True)
         if self.compile not in get_args(Compile):
             raise ConfigError(f"{own}: compile: expected 'auto', 'on' or 'off', got {self.compile!r}")
         if self.graph not in get_args(Graph):
@@ -213,6 +222,16 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @property
+    def runs(self) -> int:
+        """The training runs these settings take: an ensemble of seeds one per member, else one."""
+        return self.members if self.ensemble == "seeds" else 1
+
+    @property
+    def snapshots(self) -> int:
+        """The members one run's snapshots give beside member 0 (0 unless ``ensemble`` is snapshots)."""
+        return self.members - 1 if self.ensemble == "snapshots" else 0
 
 
 #: the network without its edge encoder, with the training settings that suit it (less feature noise,

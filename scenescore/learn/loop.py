@@ -9,6 +9,7 @@ over the second half of training.
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import sys
@@ -24,6 +25,7 @@ from tqdm.auto import tqdm
 
 from ..encoders import Encoder
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
+from ..models.ensemble import EnsembleNet
 from ..models.compiled import compiling
 from ..models.trust import reference
 from ..runtime.devices import draw, generator, resolve_device
@@ -70,7 +72,7 @@ def fit(
     run = run or Run()
     dev = resolve_device(device)
     check_training_data(scenes)
-    if cfg.members > 1:
+    if cfg.runs > 1:
         return train_members(fit, scenes, cfg, seed, Job(encoder, progress, validation, device, run))
     cached = None
     if run.log_dir is None:
@@ -148,6 +150,23 @@ class Training:
         _iterate(self.trainer, self.cfg, self.derived, self.data, self.done, writer, self.done.iteration)
         self.done.iteration += 1
 
+    def cycle(self, progress: bool = True) -> tuple[list[torch.Tensor], float]:
+        """One snapshot cycle after the run (``ensemble: snapshots``): ``snapshot_cycle x iterations``
+        more iterations from the weights where they stand, the learning rate restarted and annealed
+        again, averaged over the cycle's second half -> ``(the averaged weights, the cycle's final
+        loss)``. The run's own :attr:`done` is left as it is."""
+        length = max(round(self.cfg.snapshot_cycle * self.cfg.iterations), 1)
+        t = self.trainer
+        for group in t.opt.param_groups:
+            group["lr"] = group["initial_lr"] = self.derived.lr
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(t.opt, T_max=length, eta_min=self.cfg.lr_final)
+        d = replace(self.derived, averaged_from=length // 2,
+                    decay=max(min(self.cfg.average, 1 - 3 / max(length - length // 2, 1)), 0.0))
+        own = Progress()
+        for it in tqdm(range(length), desc="snapshot", disable=not progress, unit="it", leave=False):
+            _iterate(replace(t, sched=sched), self.cfg, d, self.data, own, None, it)
+        return _averaged(self.model.net, own.shadow), _final_loss(own.history)
+
 
 def _fit(
     scenes: Sequence[Scene],
@@ -189,28 +208,57 @@ def _fit(
             if done.iteration % 20 == 1:
                 bar.set_postfix(loss=f"{sum(done.history[-20:]) / len(done.history[-20:]):.3f}")
             bar.update()
+        weights = [_averaged(tr.model.net, done.shadow)]
+        cycles = [tr.cycle(progress) for _ in range(cfg.snapshots)]
     model = tr.model
     model.net.eval()
-    if done.shadow is not None:
-        with torch.no_grad():
-            for p, a in zip(model.net.parameters(), done.shadow, strict=True):
-                p.copy_(a)
-    history = done.history
+    if cycles:
+        model = _snapshot_ensemble(model, weights + [w for w, _ in cycles])
+    else:
+        _load_weights(model.net, weights[0])
     model.info = ModelInfo(
         train_config=cfg.to_dict(),
         seed=seed,
         scenes=len(scenes),
-        final_loss=float(sum(history[-50:]) / max(len(history[-50:]), 1)),
+        final_loss=_final_loss(done.history),
         chance_loss=math.log(tr.derived.candidates),
         seconds=round(time.perf_counter() - t0, 2),
         compiled=tr.compiled,
         # the learning curve: the mean loss over each block of 10 iterations
-        history=[
-            round(sum(history[i : i + 10]) / len(history[i : i + 10]), 4) for i in range(0, len(history), 10)
-        ],
+        history=[round(sum(done.history[i : i + 10]) / len(done.history[i : i + 10]), 4)
+                 for i in range(0, len(done.history), 10)],
+        members=[{"seed": seed, "snapshot": k, "final_loss": loss}
+                 for k, loss in enumerate([_final_loss(done.history)] + [c for _, c in cycles])]
+        if cycles else None,
     )
     model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
     return model
+
+
+def _final_loss(history: Sequence[float]) -> float:
+    """A run's final loss: the mean over its last 50 iterations."""
+    return float(sum(history[-50:]) / max(len(history[-50:]), 1))
+
+
+def _averaged(net: torch.nn.Module, shadow: list[torch.Tensor] | None) -> list[torch.Tensor]:
+    """The trained weights: the moving average where there is one, else the last iterate (copies)."""
+    return [a.detach().clone() for a in (shadow if shadow is not None else net.parameters())]
+
+
+@torch.no_grad()
+def _load_weights(net: torch.nn.Module, weights: Sequence[torch.Tensor]) -> None:
+    for p, a in zip(net.parameters(), weights, strict=True):
+        p.copy_(a)
+
+
+def _snapshot_ensemble(model: ScoreModel, weights: Sequence[list[torch.Tensor]]) -> ScoreModel:
+    """The ensemble of one run's snapshots: a copy of ``model``'s network per set of ``weights``."""
+    nets = []
+    for w in weights:
+        net = copy.deepcopy(model.net)
+        _load_weights(net, w)
+        nets.append(net.eval())
+    return ScoreModel(EnsembleNet(nets), model.encoder)
 
 
 def _iterate(

@@ -95,14 +95,14 @@ def train_groups(
     processes (:func:`training_jobs`), so that a final model and its cross-validation's folds train side
     by side; each network is the one it would be alone, whatever the number of processes."""
     dev = resolve_device(groups[0].job.device)
-    seeds = [member_seed(seed, m) for m in range(cfg.members)]
+    seeds = [member_seed(seed, m) for m in range(cfg.runs)]
     tasks = [(g, m, s) for g in range(len(groups)) for m, s in enumerate(seeds)]
     n = training_jobs(jobs, len(tasks), dev)
     if n == 1:
         nets = [_member(one, groups[g].scenes, cfg, groups[g].job, m, s) for g, m, s in tasks]
     else:
         if groups[0].job.progress:
-            what = f"{cfg.members} members" if len(groups) == 1 else f"{len(tasks)} networks"
+            what = f"{cfg.runs} members" if len(groups) == 1 else f"{len(tasks)} networks"
             print(f"training {what} in {n} worker processes", file=sys.stderr)
         with tempfile.TemporaryDirectory(prefix="scenescore-members-") as tmp:
             quiet = [replace(g, job=replace(g.job, progress=False)) for g in groups]
@@ -111,9 +111,9 @@ def train_groups(
             paths = map_in_workers(work, tasks, jobs=n, log=_stderr, bar=bar)
             # each with the encoder its training derived (a footprint encoder reads sizes in the data's
             # unit), not the one given: a checkpoint read with that would encode the objects otherwise
-            used = [derive(replace(cfg, members=1), g.scenes, g.job.encoder).encoder for g in groups]
+            used = [derive(_one_run(cfg), g.scenes, g.job.encoder).encoder for g in groups]
             nets = [load(p, encoder=used[g], device=dev) for p, (g, _, _) in zip(paths, tasks)]
-    k = cfg.members
+    k = cfg.runs
     return [
         nets[g * k]
         if k == 1
@@ -125,9 +125,9 @@ def train_groups(
 def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, job: Job, m: int, seed: int) -> ScoreModel:
     """Member ``m`` of the ensemble of ``cfg`` (the whole model for one network): the single model of
     ``seed``, trained in this process."""
-    alone = cfg.members == 1
+    alone = cfg.runs == 1
     if job.progress and not alone:
-        print(f"member {m + 1} of {cfg.members} (seed {seed})", file=sys.stderr)
+        print(f"member {m + 1} of {cfg.runs} (seed {seed})", file=sys.stderr)
     run = job.run
     if not alone:  # each member logs and keeps its state beside the others'
         run = replace(
@@ -137,7 +137,7 @@ def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, job: Job, m: 
         )
     return one(
         scenes,
-        replace(cfg, members=1),
+        _one_run(cfg),
         seed=seed,
         encoder=job.encoder,
         validation=job.validation,
@@ -157,7 +157,7 @@ def _member_in_worker(
     model = _member(one, grp.scenes, cfg, grp.job, m, seed)
     path = str(Path(tmp) / f"group{g}-member{m}.ckpt")
     model.save(path)
-    who = f"member {m + 1} of {cfg.members} (seed {seed})" if cfg.members > 1 else ""
+    who = f"member {m + 1} of {cfg.runs} (seed {seed})" if cfg.runs > 1 else ""
     name = " ".join(x for x in (grp.label, who) if x) or "the model"
     log(f"{name} trained in {model.info.seconds or 0:.0f} s")
     return path
@@ -187,6 +187,12 @@ def _mean_of(
     )
     model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
     return model
+
+
+def _one_run(cfg: TrainConfig) -> TrainConfig:
+    """The settings of one of ``cfg``'s runs: a seeds ensemble's member, else ``cfg`` itself (a snapshot
+    ensemble is one run)."""
+    return replace(cfg, members=1) if cfg.runs > 1 else cfg
 
 
 def _stderr(line: str) -> None:

@@ -159,8 +159,10 @@ def train(
     info = model.info
     assert info.final_loss is not None and info.chance_loss is not None  # set by training
     took = f"in {info.seconds:.0f} s"
-    if cfg.members > 1:  # the members' times summed: they may have trained side by side
+    if cfg.runs > 1:  # the members' times summed: they may have trained side by side
         took = f"as {cfg.members} members, {info.seconds:.0f} s of training in all"
+    elif cfg.members > 1:
+        took = f"as {cfg.members} snapshots of one run, {took}"
     say(
         f"trained on {info.scenes} scenes {took} "
         f"(final loss {info.final_loss:.3f}, chance {info.chance_loss:.3f})"
@@ -186,7 +188,7 @@ def train(
     _calibrate(model, held, train_s, seed, say)
     record["tidy"] = None if info.tidy is None else info.tidy.summary()
     _save(model, out_path, out.report, record, say)
-    _remove_state(run.state, cfg.members)
+    _remove_state(run.state, cfg.runs)
     return model
 
 
