@@ -49,8 +49,8 @@ from scenescore.learn.cache import cached_path
 from scenescore.models import ScoreModel, load
 from scenescore.models.ensemble import members_of
 from scenescore.models.trust import reference
-from scenescore.scenarios import get
 from scenescore.planning.placement import PLACE
+from scenescore.scenarios import get
 from scenescore.scenarios.zoo import ROOMS, ZOO
 from scenescore.scene.outputs import atomic_write_text
 
@@ -185,7 +185,9 @@ def singles_from_snapshots(
             model.info.final_loss = ens.info.members[0]["final_loss"]
             model.info.trust = reference(model, train_s, held, single.feature_noise)
             model.save(dst)
-            print(f"{name} seed {seed}: the single model from its snapshot ensemble's member 0", file=sys.stderr)
+            print(
+                f"{name} seed {seed}: the single model from its snapshot ensemble's member 0", file=sys.stderr
+            )
 
 
 def read_cases(path: str | os.PathLike) -> dict[str, list[dict[str, Any]]]:

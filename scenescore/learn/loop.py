@@ -25,8 +25,8 @@ from tqdm.auto import tqdm
 
 from ..encoders import Encoder
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
-from ..models.ensemble import EnsembleNet
 from ..models.compiled import compiling
+from ..models.ensemble import EnsembleNet
 from ..models.trust import reference
 from ..runtime.devices import draw, generator, resolve_device
 from ..runtime.threads import torch_threads
@@ -160,8 +160,11 @@ class Training:
         for group in t.opt.param_groups:
             group["lr"] = group["initial_lr"] = self.derived.lr
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(t.opt, T_max=length, eta_min=self.cfg.lr_final)
-        d = replace(self.derived, averaged_from=length // 2,
-                    decay=max(min(self.cfg.average, 1 - 3 / max(length - length // 2, 1)), 0.0))
+        d = replace(
+            self.derived,
+            averaged_from=length // 2,
+            decay=max(min(self.cfg.average, 1 - 3 / max(length - length // 2, 1)), 0.0),
+        )
         own = Progress()
         for it in tqdm(range(length), desc="snapshot", disable=not progress, unit="it", leave=False):
             _iterate(replace(t, sched=sched), self.cfg, d, self.data, own, None, it)
@@ -225,11 +228,16 @@ def _fit(
         seconds=round(time.perf_counter() - t0, 2),
         compiled=tr.compiled,
         # the learning curve: the mean loss over each block of 10 iterations
-        history=[round(sum(done.history[i : i + 10]) / len(done.history[i : i + 10]), 4)
-                 for i in range(0, len(done.history), 10)],
-        members=[{"seed": seed, "snapshot": k, "final_loss": loss}
-                 for k, loss in enumerate([_final_loss(done.history)] + [c for _, c in cycles])]
-        if cycles else None,
+        history=[
+            round(sum(done.history[i : i + 10]) / len(done.history[i : i + 10]), 4)
+            for i in range(0, len(done.history), 10)
+        ],
+        members=[
+            {"seed": seed, "snapshot": k, "final_loss": loss}
+            for k, loss in enumerate([_final_loss(done.history)] + [c for _, c in cycles])
+        ]
+        if cycles
+        else None,
     )
     model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
     return model
@@ -253,7 +261,8 @@ def _load_weights(net: torch.nn.Module, weights: Sequence[torch.Tensor]) -> None
 
 def _snapshot_ensemble(model: ScoreModel, weights: Sequence[list[torch.Tensor]]) -> ScoreModel:
     """The ensemble of one run's snapshots: a copy of ``model``'s network per set of ``weights``."""
-    nets = []
+    assert isinstance(model.net, EnergyNet)  # a run trains one network
+    nets: list[EnergyNet] = []
     for w in weights:
         net = copy.deepcopy(model.net)
         _load_weights(net, w)

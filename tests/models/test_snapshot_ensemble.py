@@ -74,7 +74,12 @@ def test_one_run_however_many_snapshots():
 
 @pytest.mark.parametrize(
     "field, value",
-    [("ensemble", "bagging"), ("snapshot_cycle", 0.0), ("snapshot_cycle", 1.5), ("snapshot_cycle", float("nan"))],
+    [
+        ("ensemble", "bagging"),
+        ("snapshot_cycle", 0.0),
+        ("snapshot_cycle", 1.5),
+        ("snapshot_cycle", float("nan")),
+    ],
 )
 def test_bad_snapshot_settings_are_refused_by_name(field, value):
     with pytest.raises(ConfigError, match=field):
