@@ -42,15 +42,14 @@ from typing import Any
 import torch
 
 from scenescore.experiments.execution import Execution
-from scenescore.experiments.zoo import run
+from scenescore.experiments.zoo import run, training_split
 from scenescore.experiments.zoo_verdicts import Cases, catastrophic, good, trust_line
-from scenescore.learn import VALIDATION_FRACTION, TrainConfig, split_validation
+from scenescore.learn import VALIDATION_FRACTION, TrainConfig
 from scenescore.learn.cache import cached_path
 from scenescore.models import ScoreModel, load
 from scenescore.models.ensemble import members_of
 from scenescore.models.trust import reference
 from scenescore.planning.placement import PLACE
-from scenescore.scenarios import get
 from scenescore.scenarios.zoo import ROOMS, ZOO
 from scenescore.scene.outputs import atomic_write_text
 
@@ -119,10 +118,11 @@ def main() -> None:
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     )
     summary = []
+    snap = None if args.singles_from is None else TrainConfig(**json.loads(args.singles_from))
     for k, overrides in enumerate(configs):
         t0 = time.perf_counter()
-        if args.singles_from is not None and args.cache is not None:
-            singles_from_snapshots(args, scenarios, TrainConfig(**json.loads(args.singles_from)), overrides)
+        if snap is not None and args.cache is not None:
+            singles_from_snapshots(args, scenarios, snap, overrides)
         res = run(
             args.seeds,
             scenarios,
@@ -172,9 +172,7 @@ def singles_from_snapshots(
     cpu = torch.device("cpu")
     for name in scenarios:
         for seed in range(args.seeds):
-            train_s, _ = get(name).split(seed)
-            train_s = train_s[: args.train_scenes] if args.train_scenes is not None else train_s
-            train_s, held = split_validation(train_s, args.val, seed=seed)
+            train_s, held, _ = training_split(name, seed, args.val, args.train_scenes)
             src = cached_path(args.cache, train_s, snap, None, seed, held, cpu)
             dst = cached_path(args.cache, train_s, single, None, seed, held, cpu)
             if src is None or dst is None or not src.exists() or dst.exists():

@@ -50,6 +50,7 @@ from .zoo_verdicts import (
 )
 
 __all__ = [
+    "training_split",
     "zoo_cases",
     "place_back",
     "run",
@@ -165,6 +166,21 @@ def place_back(
     return placed
 
 
+def training_split(
+    name: str, seed: int, val: float = 0.0, train_scenes: int | None = None
+) -> tuple[list[Scene], list[Scene], list[Scene]]:
+    """Scenario ``name``'s scenes for ``seed`` as :func:`run_one` uses them: ``(trained on, held out for
+    validation, test)``, the training scenes cut to the first ``train_scenes`` before ``val`` of them
+    is held out."""
+    train_s, test_s = get(name).split(seed)
+    if train_scenes is not None:
+        if not 2 <= train_scenes <= len(train_s):
+            raise SceneError(f"zoo: train_scenes must be 2 to {len(train_s)}, got {train_scenes}")
+        train_s = train_s[:train_scenes]
+    train_s, held = split_validation(train_s, val, seed=seed)
+    return train_s, held, test_s
+
+
 def run_one(
     name: str,
     seed: int,
@@ -187,12 +203,7 @@ def run_one(
     same); ``{"cases", "worst", "seconds"}``."""
     t0 = time.perf_counter()
     sc = get(name)
-    train_s, test_s = sc.split(seed)
-    if train_scenes is not None:
-        if not 2 <= train_scenes <= len(train_s):
-            raise SceneError(f"zoo: train_scenes must be 2 to {len(train_s)}, got {train_scenes}")
-        train_s = train_s[:train_scenes]
-    train_s, held = split_validation(train_s, val, seed=seed)
+    train_s, held, test_s = training_split(name, seed, val, train_scenes)
     model = fit(
         train_s,
         config or TrainConfig(),

@@ -289,18 +289,26 @@ def derive(cfg: TrainConfig, scenes: Sequence[Scene], encoder: Encoder | None = 
         neighbours=cfg.neighbours if local else None,
         radius=radius,
     )
-    averaged_from = cfg.iterations // 2
+    averaged_from, decay = averaging(cfg.average, cfg.iterations)
     return Derived(
         encoder=encoder,
         energy=energy,
         batch_scenes=min(cfg.batch_scenes, len(scenes)),
         chain=replace(cfg.chain, final_descent=0),
         averaged_from=averaged_from,
-        decay=max(min(cfg.average, 1 - 3 / max(cfg.iterations - averaged_from, 1)), 0.0),
+        decay=decay,
         candidates=cfg.negatives + cfg.perturbed + cfg.reanchored + 1,
         lr=cfg.lr if cfg.lr is not None else (LR_LOCAL if local else LR_DENSE),
         work=training_work(cfg, scenes, energy),
     )
+
+
+def averaging(average: float, iterations: int) -> tuple[int, float]:
+    """``(first averaged iteration, decay)`` of the weights' moving average over a run of ``iterations``:
+    its second half, the decay ``average`` lowered to ``1 - 3 / (averaged iterations)`` for a short run
+    (the first averaged iteration's weights weigh at most e^-3), 0 for no averaging."""
+    start = iterations // 2
+    return start, max(min(average, 1 - 3 / max(iterations - start, 1)), 0.0)
 
 
 def training_work(cfg: TrainConfig, scenes: Sequence[Scene], energy: EnergyConfig) -> float:

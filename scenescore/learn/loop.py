@@ -32,7 +32,7 @@ from ..runtime.devices import draw, generator, resolve_device
 from ..runtime.threads import torch_threads
 from ..scene.scene import Scene
 from .cache import cached_path
-from .config import Derived, TrainConfig, compiles, derive
+from .config import Derived, TrainConfig, averaging, compiles, derive
 from .data import check_training_data
 from .logs import summary_writer
 from .losses import ABSENT, training_loss
@@ -160,11 +160,8 @@ class Training:
         for group in t.opt.param_groups:
             group["lr"] = group["initial_lr"] = self.derived.lr
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(t.opt, T_max=length, eta_min=self.cfg.lr_final)
-        d = replace(
-            self.derived,
-            averaged_from=length // 2,
-            decay=max(min(self.cfg.average, 1 - 3 / max(length - length // 2, 1)), 0.0),
-        )
+        start, decay = averaging(self.cfg.average, length)
+        d = replace(self.derived, averaged_from=start, decay=decay)
         own = Progress()
         for it in tqdm(range(length), desc="snapshot", disable=not progress, unit="it", leave=False):
             _iterate(replace(t, sched=sched), self.cfg, d, self.data, own, None, it)
@@ -219,11 +216,12 @@ def _fit(
         model = _snapshot_ensemble(model, weights + [w for w, _ in cycles])
     else:
         _load_weights(model.net, weights[0])
+    final = _final_loss(done.history)
     model.info = ModelInfo(
         train_config=cfg.to_dict(),
         seed=seed,
         scenes=len(scenes),
-        final_loss=_final_loss(done.history),
+        final_loss=final,
         chance_loss=math.log(tr.derived.candidates),
         seconds=round(time.perf_counter() - t0, 2),
         compiled=tr.compiled,
@@ -234,7 +232,7 @@ def _fit(
         ],
         members=[
             {"seed": seed, "snapshot": k, "final_loss": loss}
-            for k, loss in enumerate([_final_loss(done.history)] + [c for _, c in cycles])
+            for k, loss in enumerate([final] + [c for _, c in cycles])
         ]
         if cycles
         else None,
