@@ -1,6 +1,8 @@
 """Train the models the package ships (``scenescore.models.pretrained(name)``), one per scenario of
 ``scenescore.experiments.bundled.SCENARIOS`` (the paper's four and the zoo's) and of ``RELATION_MODELS``
-(three relations: left of, in front of, near).
+(three relations: left of, in front of, near), and the arrangement prior ``PRIOR`` (every bundled table
+top's training scenes at unit length scale, :func:`scenescore.experiments.prior.train_prior`), recorded
+with its final loss beside chance and the datasets it saw.
 
 Each scenario's model is trained on its training split (``get(name).split(seed)[0]``, all of it, as
 ``scenescore experiment zoo`` trains) with the default ``TrainConfig`` and the seed recorded (a relation
@@ -28,6 +30,7 @@ from tqdm.auto import tqdm
 
 import scenescore.models
 from scenescore.experiments.bundled import (
+    PRIOR,
     RELATION_MODELS,
     RELATION_SHORTFALL,
     SCENARIOS,
@@ -35,6 +38,7 @@ from scenescore.experiments.bundled import (
     relation_figure,
     tolerance,
 )
+from scenescore.experiments.prior import PRIOR_DATASETS, train_prior
 from scenescore.experiments.relation_models import train_config as relations_train_config
 from scenescore.experiments.relation_models import train_relation
 from scenescore.learn import TrainConfig, fit
@@ -59,17 +63,19 @@ def read_index(path: Path) -> dict[str, Any]:
 
 def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> dict[str, Any]:
     """Train and write ``name``'s model; its index entry, less the figure (:func:`measure`). A scenario's
-    model trains with the trainer's defaults; a relation model as the relations experiment's do
+    model, and the prior, train with the trainer's defaults; a relation model as the relations experiment's do
     (:func:`train_relation`: 2048 examples, with counter-examples that move one object a little, trained
     again with the next member seed while its edge is flat). ``iterations``: instead of either default."""
     t0 = time.perf_counter()
-    if name in RELATION_MODELS:
+    config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
+    if name == PRIOR:
+        model = train_prior(seed=seed, progress=True, config=config)
+    elif name in RELATION_MODELS:
         model = train_relation(
             name.removeprefix("relation-"), seed, relations_train_config(iterations), progress=True
         )
     else:
         train_s, _ = get(name).split(seed)
-        config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
         model = fit(train_s, config, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
     path = folder / f"{name}.ckpt"
@@ -89,6 +95,14 @@ def measure(name: str, entry: dict[str, Any], folder: Path) -> dict[str, Any]:
     with its tolerance: the index entry's figure fields."""
     t0 = time.perf_counter()
     model = load(folder / f"{name}.ckpt")
+    if name == PRIOR:
+        return {
+            "final_loss": model.info.final_loss,
+            "chance_loss": model.info.chance_loss,
+            "datasets": list(PRIOR_DATASETS),
+            "length_scale_m": model.config.length_scale,
+            "figure_seconds": round(time.perf_counter() - t0, 1),
+        }
     if name in RELATION_MODELS:
         rel = relation_figure(model, name, int(entry["seed"]))
         return {
@@ -119,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         "--measure-only", action="store_true", help="no training: measure the checkpoints there again"
     )
     args = ap.parse_args(argv)
-    known = (*SCENARIOS, *RELATION_MODELS)
+    known = (*SCENARIOS, *RELATION_MODELS, PRIOR)
     names = list(known) if not args.only else [n.strip() for n in args.only.split(",") if n.strip()]
     unknown = [n for n in names if n not in known]
     if unknown:
@@ -139,7 +153,9 @@ def main(argv: list[str] | None = None) -> int:
         index["models"] = dict(sorted(index["models"].items()))
         atomic_write_text(index_path, json.dumps(index, indent=1) + "\n")  # after each model: resumable
         shown = (
-            f"{entry['satisfied']:.0%} of {entry['held_out']} held-out examples placed back satisfied"
+            f"final loss {entry['final_loss']:.3f}, chance {entry['chance_loss']:.3f}"
+            if name == PRIOR
+            else f"{entry['satisfied']:.0%} of {entry['held_out']} held-out examples placed back satisfied"
             if name in RELATION_MODELS
             else f"mean error {entry['mean_error_m']:.4f} m over {entry['test_scenes']} test scenes"
         )

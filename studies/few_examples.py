@@ -1,4 +1,4 @@
-"""A handful of examples on the zoo: the learned energy, the examples' own relations, and their sum.
+"""A handful of examples on the zoo: the learned energy, the examples' own relations, their sum, a prior.
 
     python studies/few_examples.py [--scenarios zoo-pcb,zoo-books] [--seeds 3] [--train-scenes 5] \\
         [--weight 1.0] [--cache DIR] [--out records.json]
@@ -9,12 +9,17 @@ missing category removed each, placed back as ``place`` does. Three ways to plac
 cases and seeds: ``network`` (the learned energy trained on the K scenes at the CLI's defaults, with
 non-overlap: ``place``), ``examples`` (:class:`scenescore.costs.ExampleRelations` of the K scenes alone,
 with the same non-overlap; it proposes the example poses as the network's guide does) and ``sum``
-(``network`` plus ``--weight`` times ``examples``). One row per scenario and way, worst first by the
+(``network`` plus ``--weight`` times ``examples``); a fourth, ``prior``, is the network fine-tuned on the
+K scenes from a prior (:func:`prior_of`: one network trained at the defaults on every other bundled
+table top's training scenes, each dataset at unit length scale, the scenario tested held out of
+it). One row per scenario and way, worst first by the
 first way's error over the oracle's; then a line per way pooling every scenario: the median scenario's
 t / oracle, the catastrophic placements (more than 25 cm and 10 oracle means off) and how many were
 flagged, and the good placements (within 3 oracle means) flagged. ``--augment K`` trains the network
 on K sub-scenes of each training scene beside it (each without one movable object, the relations among
-the rest kept); ``--ways`` runs some of the three.
+the rest kept); ``--ways`` runs some of the four. ``--priors DIR`` keeps each prior there by name,
+``--tune JSON`` sets the fine-tuning's TrainConfig fields, ``--first-seed`` starts the seeds elsewhere
+than 0, and ``--from A.json B.json`` prints the table of earlier ``--out`` files pooled.
 """
 
 from __future__ import annotations
@@ -30,9 +35,11 @@ from typing import Any
 import numpy as np
 
 from scenescore.costs import ExampleRelations
+from scenescore.experiments.prior import train_prior
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.experiments.zoo_verdicts import case_records, catastrophic, good
 from scenescore.learn import Run, TrainConfig, fit
+from scenescore.models import load
 from scenescore.models.layout import BOUND_TOL
 from scenescore.models.trust import energy_per_object
 from scenescore.planning.placement import OVERLAP_WEIGHT, PLACE, covering, non_overlap, placement_problem
@@ -43,12 +50,28 @@ from scenescore.scene.outputs import atomic_write_text
 from scenescore.solvers import solve
 from scenescore.solvers.langevin import LangevinSolver
 
-WAYS = ("network", "examples", "sum")
+WAYS = ("network", "examples", "sum", "prior")
+
+
+def prior_of(held_out: str, cache: Path | None, priors: Path | None = None) -> Any:
+    """The prior that ``held_out`` is tested with (:func:`scenescore.experiments.prior.train_prior`, seed
+    0): one network at the CLI's defaults on the training scenes of every bundled table top but
+    ``held_out``, each dataset at unit length scale. ``priors``: a folder where
+    each is kept by name (``prior-without-<name>.ckpt``) and read from when there, whatever code wrote
+    it (the model cache keys on the code, so an edit to the package trains them again)."""
+    path = None if priors is None else priors / f"prior-without-{held_out}.ckpt"
+    if path is not None and path.exists():
+        return load(path)
+    model = train_prior([held_out], seed=0, progress=False, run=Run(cache=cache))
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        model.save(path)
+    return model
 
 
 def problem_of(way: str, model: Any, scene: Any, examples: ExampleRelations, weight: float) -> Problem:
     """The placement problem of one way (see the module's description)."""
-    if way == "network":
+    if way in ("network", "prior"):
         return placement_problem(model, scene)
     if way == "sum":
         base = placement_problem(model, scene)
@@ -85,14 +108,27 @@ def sub_scenes(scenes: list[Any], copies: int, seed: int) -> list[Any]:
 
 
 def one_pair(
-    name: str, seed: int, k: int, weight: float, cache: Path | None, ways: tuple[str, ...], augment: int
+    name: str,
+    seed: int,
+    k: int,
+    weight: float,
+    cache: Path | None,
+    ways: tuple[str, ...],
+    augment: int,
+    priors: Path | None = None,
+    tune: TrainConfig | None = None,
 ) -> dict[str, list[dict]]:
-    """Every way's records for one scenario and seed."""
+    """Every way's records for one scenario and seed (``priors``: as :func:`prior_of`; ``tune``: the
+    fine-tuning's settings, default the CLI's)."""
     sc = get(name)
     train_s, test_s = sc.split(seed)
     train_s = train_s[:k]
     shown = train_s + sub_scenes(train_s, augment, seed)
     model = fit(shown, TrainConfig(), seed=seed, progress=False, run=Run(cache=cache))
+    tuned = None
+    if "prior" in ways:
+        prior = prior_of(name, cache, priors)
+        tuned = fit(shown, tune or TrainConfig(), seed=seed, progress=False, run=Run(cache=cache, init=prior))
     examples = ExampleRelations(train_s)
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale
@@ -101,10 +137,11 @@ def one_pair(
     for way in ways:
         got = []
         for i, c in enumerate(cases):
-            r = solve(problem_of(way, model, c.scene, examples, weight), LangevinSolver(opts), seed=seed + i)
+            m = tuned if way == "prior" else model
+            r = solve(problem_of(way, m, c.scene, examples, weight), LangevinSolver(opts), seed=seed + i)
             got.append(placed(r, c.scene))
         truths = [p.with_poses([q.truth for q in c.singles()], c.names) for c, p in zip(cases, got)]
-        e = energy_per_object(model, got + truths)
+        e = energy_per_object(tuned if way == "prior" else model, got + truths)
         out[way] = [
             rec
             for i, (c, p) in enumerate(zip(cases, got))
@@ -156,16 +193,39 @@ def main() -> None:
         help="train the network on K sub-scenes of each training scene besides it, each without one "
         "movable object (default 0)",
     )
+    ap.add_argument("--first-seed", type=int, default=0, help="the first seed (default 0)")
+    ap.add_argument("--priors", type=Path, default=None, help="a folder the priors are kept in by name")
+    ap.add_argument(
+        "--tune",
+        default=None,
+        help='the prior way\'s fine-tuning settings, a JSON object of TrainConfig fields ({"lr": 5e-4}; '
+        "default the CLI's)",
+    )
+    ap.add_argument(
+        "--from",
+        dest="records",
+        type=Path,
+        nargs="+",
+        default=None,
+        help="print the table of these --out files' records pooled (seeds of one scenario added up), "
+        "running nothing",
+    )
     args = ap.parse_args()
     ways = tuple(w for w in args.ways.split(",") if w)
     if not set(ways) <= set(WAYS):
         ap.error(f"--ways: choose from {', '.join(WAYS)}")
+    tune = TrainConfig(**json.loads(args.tune)) if args.tune else None
+    if args.records:
+        report(merged(args.records, ways), ways)
+        return
     per: dict[str, dict[str, list[dict]]] = {}
     for name in args.scenarios.split(","):
         per[name] = {w: [] for w in ways}
-        for seed in range(args.seeds):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             t0 = time.perf_counter()
-            got = one_pair(name, seed, args.train_scenes, args.weight, args.cache, ways, args.augment)
+            got = one_pair(
+                name, seed, args.train_scenes, args.weight, args.cache, ways, args.augment, args.priors, tune
+            )
             for w in ways:
                 per[name][w] += got[w]
             means = ", ".join(f"{w} {np.mean([c['t_cm'] for c in got[w]]):.2f}" for w in ways)
@@ -174,6 +234,23 @@ def main() -> None:
             )
         if args.out is not None:
             atomic_write_text(args.out, json.dumps(per) + "\n")
+    report(per, ways)
+
+
+def merged(paths: list[Path], ways: tuple[str, ...]) -> dict[str, dict[str, list[dict]]]:
+    """The records of several ``--out`` files, each scenario's and way's added up in the files' order."""
+    per: dict[str, dict[str, list[dict]]] = {}
+    for path in paths:
+        for name, by_way in json.loads(path.read_text(encoding="utf-8")).items():
+            for w in ways:
+                if w not in by_way:
+                    sys.exit(f"{path}: {name} has no records of the way {w!r}")
+                per.setdefault(name, {v: [] for v in ways})[w] += by_way[w]
+    return per
+
+
+def report(per: dict[str, dict[str, list[dict]]], ways: tuple[str, ...]) -> None:
+    """The table, worst first by the first way's t / oracle, and each way's pooled line."""
 
     def worst(name: str) -> float:
         v = per[name][ways[0]]

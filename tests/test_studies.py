@@ -3,6 +3,7 @@ margins study judges the share flags as the trust check does."""
 
 from __future__ import annotations
 
+import json
 import runpy
 import sys
 from pathlib import Path
@@ -94,3 +95,24 @@ def test_zoo_configs_counts_each_kind_of_flag_on_catastrophic_and_good_placement
     assert flag_kinds(per_case) == (
         "flags on catastrophic placements: rival 1; flags on good placements: energy 1"
     )
+
+
+def test_few_examples_pools_records_of_several_runs(tmp_path, capsys):
+    """studies/few_examples.py --from: each scenario's records of several runs (seeds apart) added up,
+    the pooled line counting them all; a file without a way asked for is refused by name."""
+    fe = _study("few_examples.py")
+
+    def rec(t: float) -> dict:
+        return {"t_cm": t, "oracle_t_cm": 1.0, "flagged": t > 30}
+
+    one, two = tmp_path / "seed0.json", tmp_path / "seed1.json"
+    one.write_text(json.dumps({"zoo-a": {"network": [rec(40)], "prior": [rec(1)]}}))
+    two.write_text(json.dumps({"zoo-a": {"network": [rec(2)], "prior": [rec(50)]}}))
+    per = fe["merged"]([one, two], ("network", "prior"))
+    assert [r["t_cm"] for r in per["zoo-a"]["network"]] == [40, 2]
+    fe["report"](per, ("network", "prior"))
+    out = capsys.readouterr().out
+    assert "network: median scenario t / oracle 21.00, catastrophic 1 of 2 (1 flagged)" in out
+    assert "prior: median scenario t / oracle 25.50, catastrophic 1 of 2 (1 flagged)" in out
+    with pytest.raises(SystemExit, match="seed0.json: zoo-a has no records of the way 'sum'"):
+        fe["merged"]([one], ("network", "sum"))

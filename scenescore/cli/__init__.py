@@ -189,16 +189,21 @@ def add_model(p: argparse.ArgumentParser) -> None:
 
 
 def model_of(args: argparse.Namespace, device: torch.device | None = None) -> ScoreModel:
-    """``args.model`` loaded onto ``device``: the checkpoint it names, or, for a bare name (no folder,
-    no extension) that is not a file here, the package's pretrained model of that name."""
+    """``args.model`` loaded onto ``device`` (:func:`named_model`)."""
+    return named_model(args.model, device)
+
+
+def named_model(name: str, device: torch.device | None = None) -> ScoreModel:
+    """The model ``name`` names, on ``device``: the checkpoint at that path, or, for a bare name (no
+    folder, no extension) that is not a file here, the package's pretrained model of that name."""
     from pathlib import Path
 
     from ..models import load, pretrained
 
-    path = Path(args.model)
-    if path.exists() or path.suffix or path.name != args.model:
+    path = Path(name)
+    if path.exists() or path.suffix or path.name != name:
         return load(path, device=device)
-    return pretrained(args.model, device=device)
+    return pretrained(name, device=device)
 
 
 def provenance_of(args: argparse.Namespace, seconds: float) -> dict:

@@ -18,7 +18,7 @@ from ..runtime.memory import check, format_gb
 from ..scene.outputs import check_output_path
 from ..scene.scene import Scene, read_jsonl, write_jsonl
 from ..workflow.crossval import CROSS_VALIDATE_BELOW, FOLDS, LEAVE_ONE_OUT_FROM, MIN_SCENES
-from . import ITERATIONS, JOBS, SCENES, UserError, add_common, add_device, device_of, number
+from . import ITERATIONS, JOBS, SCENES, UserError, add_common, add_device, device_of, named_model, number
 from .train_settings import build_config, parse_overrides, read_config
 
 PPM = number(0, open_lo=True)  # pixels per metre
@@ -133,6 +133,15 @@ def _add_train_run(p: argparse.ArgumentParser) -> None:
         "auto does on a GPU, or a CPU of one core, where the training is large enough that the first "
         "run's compile pays for itself; on more cores eager pieces run side by side instead (default "
         "auto; off: eager)",
+    )
+    p.add_argument(
+        "--init",
+        default=None,
+        metavar="MODEL",
+        help="start from the weights of this model (a checkpoint, or the name of a model the package "
+        "ships) instead of random ones, and fine-tune them on the data: a model trained on other "
+        "arrangements lends its relations to a few examples. Its network's architecture and encoder "
+        "must be this training's; the data's own length scale, walls and graph are kept",
     )
     p.add_argument(
         "--jobs",
@@ -367,6 +376,11 @@ def run_train(args: argparse.Namespace) -> int:
         parse_overrides(args.set or []),
     )
     device = device_of(args)
+    init = None
+    if args.init is not None:  # a model that cannot be read fails before the data is read
+        from ..learn.warm_start import Start
+
+        init = Start.of(named_model(args.init), source=args.init)
     if args.log_dir is not None:
         check_output_path(args.log_dir, "--log-dir", folder=True)
         require_tensorboard()
@@ -402,6 +416,7 @@ def run_train(args: argparse.Namespace) -> int:
                 resume=args.resume,
                 save_every=args.save_every,
                 jobs=args.jobs,
+                init=init,
             ),
             force=args.force,
         )

@@ -35,6 +35,7 @@ from .zoo import place_back, zoo_cases
 
 __all__ = [
     "MISSING",
+    "PRIOR",
     "RELATION_MODELS",
     "RELATION_SHORTFALL",
     "SCENARIOS",
@@ -53,6 +54,9 @@ SCENARIOS: tuple[str, ...] = ("desk", "dining", "ordering", "tv", *ZOO)
 # the relation models the package ships too (examples/relations.yaml binds them); their figure is
 # relation_figure's
 RELATION_MODELS: tuple[str, ...] = ("relation-left_of", "relation-in_front_of", "relation-near")
+#: the arrangement prior the package ships (:mod:`scenescore.experiments.prior`), to start a training on
+#: a few scenes from (``scenescore train --init prior``); its record is its training's loss, beside chance
+PRIOR = "prior"
 RELATION_SHORTFALL = 0.2  # how far below its documented fraction a relation model's figure may come out
 RELATION_EXAMPLES = 16  # held-out examples a relation model's figure is taken over (the test split's)
 

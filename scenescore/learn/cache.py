@@ -42,9 +42,11 @@ def cached_path(
     seed: int,
     validation: Sequence[Scene],
     device: torch.device,
+    start: str | None = None,
 ) -> Path | None:
     """The file in ``folder`` for the model of this training: the same scenes, validation scenes,
-    settings, seed, device and code (not the thread count, which the weights do not depend on:
+    settings, seed, device, starting weights (``start``: their digest, None for a fresh start) and code
+    (not the thread count, which the weights do not depend on:
     :mod:`scenescore.runtime.threads`). None without a folder, and with an encoder given (a model of another
     encoder is not kept)."""
     if folder is None or encoder is not None:
@@ -57,6 +59,8 @@ def cached_path(
         "device": str(device),
         "code": code_version(),
     }
+    if start is not None:
+        what["init"] = start
     return Path(folder) / f"{digest(what)}.ckpt"
 
 

@@ -41,6 +41,7 @@ from .negatives import ChainBuffer, perturbed_negatives, reanchored_negatives
 from .run import Run
 from .size_groups import SizeGroups
 from .training_state import Progress, Trainer, read_state, state_key, write_state
+from .warm_start import Start
 
 __all__ = ["fit", "moving_average", "Training"]
 
@@ -63,7 +64,8 @@ def fit(
     ``device`` (default the CPU): where the model trains and stays; its weights start the same on every
     device (drawn on the CPU), its counter-examples' random numbers come from a generator there.
     ``run``: where the run logs, caches and keeps its resumable state, and the worker processes an
-    ensemble's members train in (:class:`~scenescore.learn.run.Run`; default: none of these).
+    ensemble's members train in, and the model it starts from (:class:`~scenescore.learn.run.Run`;
+    default: none of these).
 
     This is the training alone; :func:`scenescore.train` (:mod:`scenescore.workflow`) also holds scenes
     out, evaluates, calibrates tidying and saves, as ``scenescore train`` does.
@@ -72,18 +74,25 @@ def fit(
     run = run or Run()
     dev = resolve_device(device)
     check_training_data(scenes)
+    start = run.start
+    if start is not None:  # refused here, before any worker process starts
+        d = derive(cfg, scenes, encoder)
+        start.check(d.energy, d.encoder)
     if cfg.runs > 1:
         return train_members(fit, scenes, cfg, seed, Job(encoder, progress, validation, device, run))
     cached = None
+    digest = start.digest() if start is not None else None
     if run.log_dir is None:
-        cached = cached_path(run.cache, scenes, cfg, encoder, seed, validation, dev)
+        cached = cached_path(run.cache, scenes, cfg, encoder, seed, validation, dev, digest)
     if cached is not None and cached.exists():
         return load(cached, device=dev)
     from_state = _from_state(run.state, run.resume)
     writer = summary_writer(run.log_dir) if run.log_dir is not None else None
     try:
         with torch_threads(1):  # large batches run in pieces side by side (EnergyNet.forward)
-            model = _fit(scenes, cfg, encoder, seed, progress, validation, writer, dev, run, from_state)
+            model = _fit(
+                scenes, cfg, encoder, seed, progress, validation, writer, dev, run, from_state, start
+            )
     finally:
         if writer is not None:
             writer.close()
@@ -116,7 +125,8 @@ class Training:
     """One training run from its start: a new model of ``cfg`` for ``scenes`` on ``device``, its
     scenes' tensors, counter-example chains, optimiser, schedule and random streams (seeded by ``seed``),
     and where it stands (:attr:`done`); :meth:`step` runs one iteration, within :meth:`session` (the
-    network compiled there when :attr:`compiled`)."""
+    network compiled there when :attr:`compiled`); ``start``: the weights it starts from (None: drawn
+    by the seed)."""
 
     def __init__(
         self,
@@ -125,12 +135,17 @@ class Training:
         encoder: Encoder | None,
         seed: int,
         device: torch.device,
+        start: Start | None = None,
     ):
         torch.manual_seed(seed)
         self.cfg, self.device = cfg, device
         gen = generator(seed, device)
         self.derived = d = derive(cfg, scenes, encoder)
-        self.model = model = ScoreModel(EnergyNet(d.energy), d.encoder).to(device)
+        net = EnergyNet(d.energy)
+        if start is not None:
+            start.check(d.energy, d.encoder)
+            net.load_state_dict(dict(start.weights))
+        self.model = model = ScoreModel(net, d.encoder).to(device)
         self.data = model.tensors(scenes)
         buf = ChainBuffer(self.data, cfg.negatives, cfg, gen)
         opt = torch.optim.AdamW(model.net.parameters(), lr=d.lr, weight_decay=cfg.weight_decay)
@@ -179,14 +194,15 @@ def _fit(
     device: torch.device,
     run: Run,
     resume: bool,
+    start: Start | None,
 ) -> ScoreModel:
     """The training itself, on data :func:`fit` checked: a new model, trained, its weights averaged,
     its :class:`~scenescore.models.ModelInfo` filled (``writer``: a TensorBoard writer, or None). The
     training state goes to ``run.state`` every ``run.save_every`` iterations and at the end; ``resume``:
     start from the state there (which must exist)."""
     state, save_every = run.state, run.save_every
-    tr = Training(scenes, cfg, encoder, seed, device)
-    key = state_key(scenes, cfg, tr.derived.encoder, seed, device)
+    tr = Training(scenes, cfg, encoder, seed, device, start)
+    key = state_key(scenes, cfg, tr.derived.encoder, seed, device, start.digest() if start else None)
     if resume and state is not None:
         tr.done = read_state(state, key, tr.trainer)
     done = tr.done
@@ -236,6 +252,7 @@ def _fit(
         ]
         if cycles
         else None,
+        init=None if start is None else {"source": start.source, "digest": start.digest()},
     )
     model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
     return model

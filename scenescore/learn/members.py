@@ -184,6 +184,7 @@ def _mean_of(
         compiled=infos[0].compiled,
         history=[round(sum(c) / len(c), 4) for c in zip(*curves)],
         members=[{"seed": i.seed, "final_loss": i.final_loss, "seconds": i.seconds} for i in infos],
+        init=infos[0].init,
     )
     model.info.trust = reference(model, scenes, validation, cfg.feature_noise)
     return model

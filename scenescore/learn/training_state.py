@@ -70,17 +70,26 @@ class Trainer:
 
 
 def state_key(
-    scenes: Sequence[Scene], cfg: TrainConfig, encoder: Encoder, seed: int, device: torch.device
+    scenes: Sequence[Scene],
+    cfg: TrainConfig,
+    encoder: Encoder,
+    seed: int,
+    device: torch.device,
+    start: str | None = None,
 ) -> dict[str, str]:
     """What a state belongs to, part by part (hashes of the scenes, settings and encoder), so that a
-    refusal can say which part differs."""
-    return {
+    refusal can say which part differs (``start``: the starting weights' digest, for a run that starts
+    from another model's)."""
+    key = {
         "scenes": digest([s.to_dict() for s in scenes]),
         "settings": digest(cfg.to_dict()),
         "encoder": digest({"name": encoder.name, "config": encoder.config()}),
         "seed": str(int(seed)),
         "device": str(device),
     }
+    if start is not None:
+        key["init"] = start
+    return key
 
 
 def write_state(path: str | os.PathLike, key: dict[str, str], run: Progress, t: Trainer) -> None:

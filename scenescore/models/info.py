@@ -92,6 +92,8 @@ class ModelInfo:
     caveats: Caveats | None = None  # what the held-out evaluation found unlearned; None: nothing, or not run
     # an ensemble's members, each's own training record (seed, final_loss, seconds); None: one network
     members: list[dict[str, Any]] | None = None
+    # the weights training started from ({"source", "digest"}: fit's init); None: drawn by the seed
+    init: dict[str, str] | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # keys of the file this version does not know
 
     def to_dict(self) -> dict[str, Any]:

@@ -129,7 +129,8 @@ def train_and_cross_validate(
     model is the one it would be trained alone."""
     splits = fold_splits(scenes, folds, seed)
     jobs = job.run.jobs
-    fold_job = Job(encoder=job.encoder, progress=job.progress, device=job.device, run=Run(jobs=jobs))
+    fold_run = Run(jobs=jobs, init=job.run.init)
+    fold_job = Job(encoder=job.encoder, progress=job.progress, device=job.device, run=fold_run)
     groups = [Group(scenes, job, "the final model")] if final else []
     for f, (train_s, held) in enumerate(splits):
         say(

@@ -132,21 +132,21 @@ def train(
     the first :data:`TIDY_SCENES` training ones). ``outputs`` (:class:`Outputs`): the checkpoint, the
     report, the plot and where the summary lines go. A model whose loss never fell below chance raises
     :class:`NothingLearned` unless ``force``. ``encoder``, ``device``, ``progress`` and ``run`` (its log,
-    resumable state and worker processes): as for :func:`~scenescore.learn.fit`; with folds, ``run.jobs``
-    worker processes train the final model's networks and the folds' side by side in one pool
-    (:func:`~scenescore.workflow.crossval.train_and_cross_validate`); the training state is kept until
-    the checkpoint is written.
+    resumable state, starting model and worker processes): as for
+    :func:`~scenescore.learn.fit`; with folds, ``run.jobs`` worker processes train the final model's
+    networks and the folds' side by side in one pool (:func:`~scenescore.workflow.crossval.train_and_cross_validate`);
+    the training state is kept until the checkpoint is written.
     """
     cfg = config or TrainConfig()
-    val = validation or Validation()
-    out = outputs or Outputs()
-    run = run or Run()
+    val, out, run = validation or Validation(), outputs or Outputs(), run or Run()
     say: Log = out.log or (lambda line: None)
     out_path = None if out.checkpoint is None else Path(out.checkpoint)
     check_training_data(scenes)
     k = folds_for(len(scenes), val.folds, val.fraction, val.heldout is not None)
     train_s, held = (list(scenes), []) if k else holdout(scenes, val.fraction, val.heldout, seed)
     # keep_state: a run killed before the checkpoint is written resumes with no more training
+    if run.start is not None:
+        say(f"starting from the weights of {run.start.source}")
     job = Job(encoder, progress, held, device, replace(run, keep_state=True))
     if k:  # the final model and the folds' models train side by side
         how = "leaving one scene out at a time" if k == len(scenes) else f"{k}-fold cross-validation"

@@ -14,6 +14,7 @@ import pytest
 
 from scenescore.cli import main
 from scenescore.experiments.bundled import (
+    PRIOR,
     RELATION_MODELS,
     RELATION_SHORTFALL,
     SCENARIOS,
@@ -21,6 +22,7 @@ from scenescore.experiments.bundled import (
     relation_figure,
     tolerance,
 )
+from scenescore.experiments.prior import PRIOR_DATASETS
 from scenescore.models import CheckpointError, ScoreModel, pretrained, pretrained_index, pretrained_names
 from scenescore.scenarios import available
 
@@ -29,12 +31,16 @@ INDEX = pretrained_index()
 
 
 def test_every_scenario_ships_a_model_with_its_record():
-    assert pretrained_names() == sorted(INDEX) == sorted((*SCENARIOS, *RELATION_MODELS))
+    assert pretrained_names() == sorted(INDEX) == sorted((*SCENARIOS, *RELATION_MODELS, PRIOR))
     assert set(SCENARIOS) | set(RELATION_MODELS) <= set(available()) and len(SCENARIOS) == 16
     for name, entry in INDEX.items():
         assert entry["seed"] == 0 and entry["train_scenes"] > 0, name
         assert entry["config"]["iterations"] > 0 and entry["commit"]["commit"], name
         assert 20_000 < entry["bytes"] < 400_000, f"{name}: {entry['bytes']} bytes"
+        if name == PRIOR:  # its record: the loss its training reached, beside chance, and its data
+            assert entry["final_loss"] < entry["chance_loss"] and entry["datasets"] == list(PRIOR_DATASETS)
+            assert entry["length_scale_m"] == pytest.approx(1.0, rel=0.2)  # its data at unit scale
+            continue
         if name in RELATION_MODELS:  # its figure: the fraction of held-out examples placed back satisfied
             assert entry["held_out"] >= 1 and 0.5 <= entry["satisfied"] <= 1.0, name
             assert entry["min_satisfied"] == pytest.approx(max(entry["satisfied"] - RELATION_SHORTFALL, 0.0))
@@ -74,6 +80,22 @@ def test_shipped_model_reaches_its_documented_figure(name):
         f"{name}: mean placement error {got['mean_error']:.4f} m, documented "
         f"{entry['mean_error_m']:.4f} m + {entry['tolerance_m']:.4f} m"
     )
+
+
+def test_cli_trains_from_the_shipped_prior(tmp_path, capsys):
+    """``scenescore train --init prior`` at the defaults: the run starts from the prior's weights and
+    the checkpoint says so."""
+    from scenescore.models import load
+    from scenescore.scenarios import get
+    from scenescore.scene.scene import write_jsonl
+
+    data, out = tmp_path / "desk.jsonl", tmp_path / "tuned.ckpt"
+    write_jsonl(data, get("desk").generate(5, 3))
+    args = ["train", str(data), "--out", str(out), "--init", "prior", "--iterations", "2", "--val", "0"]
+    assert main([*args, "--folds", "1", "--force", "--quiet"]) == 0
+    assert "starting from the weights of prior" in capsys.readouterr().out
+    init = load(out).info.init
+    assert init is not None and init["source"] == "prior"
 
 
 def test_unknown_name_is_one_line_naming_the_available_ones():
