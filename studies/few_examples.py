@@ -5,19 +5,20 @@
 
 For every table-top scenario and seed, the zoo's protocol (``scenescore experiment zoo --train-scenes
 K``): the first K training scenes of the split, 16 test scenes with one object of the scenario's
-missing category removed each, placed back as ``place`` does. Three ways to place, in one run on the same
+missing category removed each, placed back as ``place`` does. Ways to place, in one run on the same
 cases and seeds: ``network`` (the learned energy trained on the K scenes at the CLI's defaults, with
 non-overlap: ``place``), ``examples`` (:class:`scenescore.costs.ExampleRelations` of the K scenes alone,
 with the same non-overlap; it proposes the example poses as the network's guide does) and ``sum``
 (``network`` plus ``--weight`` times ``examples``); a fourth, ``prior``, is the network fine-tuned on the
 K scenes from a prior (:func:`prior_of`: one network trained at the defaults on every other bundled
 table top's training scenes, each dataset at unit length scale, the scenario tested held out of
-it). One row per scenario and way, worst first by the
-first way's error over the oracle's; then a line per way pooling every scenario: the median scenario's
-t / oracle, the catastrophic placements (more than 25 cm and 10 oracle means off) and how many were
-flagged, and the good placements (within 3 oracle means) flagged. ``--augment K`` trains the network
+it), and ``prior_sum`` that network plus ``--weight`` times ``examples``. One row per scenario and
+way, worst first by the first way's error over the oracle's; then a line per way pooling every
+scenario: the median scenario's t / oracle, the catastrophic placements (more than 25 cm and 10 of the
+scenario's oracle means off) and how many were flagged, and the good placements (within 3 of the
+scenario's oracle means) flagged. ``--augment K`` trains the network
 on K sub-scenes of each training scene beside it (each without one movable object, the relations among
-the rest kept); ``--ways`` runs some of the four. ``--priors DIR`` keeps each prior there by name,
+the rest kept); ``--ways`` runs some of the five. ``--priors DIR`` keeps each prior there by name,
 ``--tune JSON`` sets the fine-tuning's TrainConfig fields, ``--first-seed`` starts the seeds elsewhere
 than 0, and ``--from A.json B.json`` prints the table of earlier ``--out`` files pooled.
 """
@@ -50,7 +51,8 @@ from scenescore.scene.outputs import atomic_write_text
 from scenescore.solvers import solve
 from scenescore.solvers.langevin import LangevinSolver
 
-WAYS = ("network", "examples", "sum", "prior")
+WAYS = ("network", "examples", "sum", "prior", "prior_sum")
+TUNED = ("prior", "prior_sum")
 
 
 def prior_of(held_out: str, cache: Path | None, priors: Path | None = None) -> Any:
@@ -73,7 +75,7 @@ def problem_of(way: str, model: Any, scene: Any, examples: ExampleRelations, wei
     """The placement problem of one way (see the module's description)."""
     if way in ("network", "prior"):
         return placement_problem(model, scene)
-    if way == "sum":
+    if way in ("sum", "prior_sum"):
         base = placement_problem(model, scene)
         return Problem(scene, base.cost + weight * examples, movable=scene.unknown, name="place")
     cost: Any = examples
@@ -124,24 +126,26 @@ def one_pair(
     train_s, test_s = sc.split(seed)
     train_s = train_s[:k]
     shown = train_s + sub_scenes(train_s, augment, seed)
-    model = fit(shown, TrainConfig(), seed=seed, progress=False, run=Run(cache=cache))
-    tuned = None
-    if "prior" in ways:
+    model = tuned = None
+    if set(ways) - set(TUNED):
+        model = fit(shown, TrainConfig(), seed=seed, progress=False, run=Run(cache=cache))
+    if set(TUNED) & set(ways):
         prior = prior_of(name, cache, priors)
         tuned = fit(shown, tune or TrainConfig(), seed=seed, progress=False, run=Run(cache=cache, init=prior))
+    ref = model if model is not None else tuned
     examples = ExampleRelations(train_s)
     cases = zoo_cases(sc, test_s, seed)
-    tol = BOUND_TOL * model.config.length_scale
-    opts = covering(PLACE, model, [c.scene for c in cases])
+    tol = BOUND_TOL * ref.config.length_scale
+    opts = covering(PLACE, ref, [c.scene for c in cases])
     out: dict[str, list[dict]] = {}
     for way in ways:
         got = []
         for i, c in enumerate(cases):
-            m = tuned if way == "prior" else model
+            m = tuned if way in TUNED else model
             r = solve(problem_of(way, m, c.scene, examples, weight), LangevinSolver(opts), seed=seed + i)
             got.append(placed(r, c.scene))
         truths = [p.with_poses([q.truth for q in c.singles()], c.names) for c, p in zip(cases, got)]
-        e = energy_per_object(tuned if way == "prior" else model, got + truths)
+        e = energy_per_object(tuned if way in TUNED else model, got + truths)
         out[way] = [
             rec
             for i, (c, p) in enumerate(zip(cases, got))
@@ -167,9 +171,11 @@ def pooled(way: str, per: dict[str, dict[str, list[dict]]]) -> str:
         np.mean([c["t_cm"] for c in v[way]]) / max(np.mean([c["oracle_t_cm"] for c in v[way]]), 1e-9)
         for v in per.values()
     ]
+    # catastrophic and good are each scenario's verdicts (against its own oracle's mean), added up
     cases = [c for v in per.values() for c in v[way]]
-    flags = np.array([c["flagged"] for c in cases])
-    cat, ok = catastrophic(cases), good(cases)
+    flags = np.array([c["flagged"] for c in cases], dtype=bool)
+    cat = np.concatenate([catastrophic(v[way]) for v in per.values()])
+    ok = np.concatenate([good(v[way]) for v in per.values()])
     return (
         f"{way}: median scenario t / oracle {np.median(ratios):.2f}, catastrophic {int(cat.sum())} of "
         f"{len(cases)} ({int((cat & flags).sum())} flagged), good flagged {int((ok & flags).sum())} of "

@@ -166,6 +166,7 @@ def test_five_scenes_are_validated_by_leaving_one_out_and_train_says_what_they_p
     said = [line for line in lines if line.startswith(("the examples pin down:", "they leave free:"))]
     assert len(said) == 2
     assert any("`scenescore place MODEL SCENE --examples DATA.jsonl`" in line for line in lines)
+    assert any(line.startswith("`--init prior` starts the training") for line in lines)
     pinned = json.loads((tmp_path / "r.json").read_text())["pinned"]
     ref = model.trust
     assert ref is not None and ref.spreads is not None and set(pinned) == set(ref.spreads)

@@ -55,6 +55,20 @@ def test_loss_at_chance_and_a_category_no_better_than_nearest_neighbour_are_name
     ]
 
 
+def test_a_loss_above_chance_with_one_scene_left_out_is_a_warning_not_a_caveat():
+    """Leaving one of a handful of scenes out, the held-out loss is warned of, not carried by placements;
+    a category no better than nearest neighbour still is, and 3-fold cross-validation keeps both."""
+    worse = CategoryErrors("mouse", 4, 52.0, None, baseline_t_cm=44.0)
+    one_out = replace(_report(6.38, 2.83, [worse]), folds=4)  # four scenes, four folds
+    w = one_out.warnings()
+    assert "not below chance (2.830)" in w[0] and "placements, which do not carry it" in w[0]
+    cav = one_out.caveats()
+    assert cav is not None and cav.model == [] and list(cav.categories) == ["mouse"]
+    assert replace(_report(6.38, 2.83, []), folds=4).caveats() is None
+    folded = replace(_report(6.38, 2.83, [worse]), scenes=9, folds=3).caveats()
+    assert folded is not None and len(folded.model) == 1
+
+
 def test_caveats_survive_the_checkpoints_json_and_older_checkpoints_load():
     cav = Caveats(["loss at chance"], {"mouse": "mouse: no better"})
     info = ModelInfo(seed=3, caveats=cav)

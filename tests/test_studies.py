@@ -116,3 +116,42 @@ def test_few_examples_pools_records_of_several_runs(tmp_path, capsys):
     assert "prior: median scenario t / oracle 25.50, catastrophic 1 of 2 (1 flagged)" in out
     with pytest.raises(SystemExit, match="seed0.json: zoo-a has no records of the way 'sum'"):
         fe["merged"]([one], ("network", "sum"))
+
+
+def test_train_as_user_sets_what_train_said_beside_the_test(capsys):
+    """studies/train_as_user.py: per scenario, the held-out loss and the cross-validated error beside the
+    test's and what train said of the category; the held-out loss's caveat left out of the counts, the
+    catastrophic placements flagged by a validation caveat alone counted apart."""
+    tu = _study("train_as_user.py")
+    loss = "validation: the model's held-out InfoNCE loss (4.0) was not below chance (2.8): ..."
+    cat = "validation: mug: held-out error ..."
+
+    def rec(t: float, *flags: str) -> dict:
+        return {"t_cm": t, "oracle_t_cm": 1.0, "flags": [loss, *flags]}
+
+    run = {"seed": 0, "category": "mug", "cv_t_cm": 3.0, "free": False}
+    records = [rec(40, cat), rec(30, "far: ..."), rec(1, "energy: ..."), rec(2)]
+    tu["report"]({"zoo-a": [{**run, "records": records}]})
+    out = capsys.readouterr().out
+    assert (
+        "| zoo-a | mug | above chance | 3.00 | 18.25 | 40.0 | 18.25 | unlearned | 2 (2, 1) | 1 (1) of 2 |"
+        in out
+    )
+    assert (
+        "catastrophic 2 of 4 (2 flagged, 1 by a validation caveat alone), good flagged 1 of 2 (50.0%" in out
+    )
+    tu["report"]({"zoo-a": [{**run, "heldout_loss": 2.0, "chance_loss": 2.83, "records": records[2:]}]})
+    assert "| zoo-a | mug | 2.00 (2.83) | 3.00 | 1.50 | 2.0 | 1.50 | - |" in capsys.readouterr().out
+
+
+def test_few_examples_pools_each_scenarios_own_verdicts(capsys):
+    """The pooled line adds up each scenario's verdicts, each against its own oracle: a 30 cm error is
+    catastrophic beside a 1 cm oracle and good beside a 20 cm one, whatever the other scenario's."""
+    fe = _study("few_examples.py")
+
+    def rec(t: float, oracle: float) -> dict:
+        return {"t_cm": t, "oracle_t_cm": oracle, "flagged": False}
+
+    per = {"zoo-fine": {"network": [rec(30, 1.0), rec(1, 1.0)]}, "zoo-wide": {"network": [rec(30, 20.0)]}}
+    fe["report"](per, ("network",))
+    assert "catastrophic 1 of 3 (0 flagged), good flagged 0 of 2 (0.0%)" in capsys.readouterr().out

@@ -23,8 +23,9 @@ with the reason, when
 - it is pinned at a bound that no object of its category comes near in the data (within
   :data:`NEAR_BOUND` length scales: ``bound``),
 - its category's features are far from every feature seen in training (``novel``),
-- the model's held-out evaluation found it unlearned: a held-out loss not below chance, or the object's
-  category placed no better than nearest neighbour (``validation``; the model's ``info.caveats``).
+- the model's held-out evaluation found it unlearned: a held-out loss not below chance (not when one
+  scene was left out at a time), or the object's category placed no better than nearest neighbour
+  (``validation``; the model's ``info.caveats``).
 
 A sampling solver's result adds one more (:mod:`scenescore.models.rivals`): another particle puts the
 object far away for nearly the same cost (``rival``). A flagged object's flags end with the relation

@@ -40,7 +40,7 @@ from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene, write_jsonl
 from ..scene.units import length_unit
 from ..viz.plot import training_figure
-from .crossval import folds_for, train_and_cross_validate
+from .crossval import MIN_SCENES, folds_for, train_and_cross_validate
 
 __all__ = ["NothingLearned", "Outputs", "Validation", "holdout", "train"]
 
@@ -171,7 +171,7 @@ def train(
         raise NothingLearned(info.final_loss, info.chance_loss)
     record: dict[str, Any] = {"checkpoint": None if out_path is None else str(out_path)}
     record["training"] = info.training()
-    record["pinned"] = _pinned(model, scenes, out.source, say)
+    record["pinned"] = _pinned(model, scenes, out.source, say, started=run.start is not None)
     examples: list[Any] = []
     if held:
         ev = evaluate(
@@ -193,16 +193,27 @@ def train(
 
 
 def _pinned(
-    model: ScoreModel, scenes: Sequence[Scene], source: str | os.PathLike | None, say: Log
+    model: ScoreModel,
+    scenes: Sequence[Scene],
+    source: str | os.PathLike | None,
+    say: Log,
+    started: bool = False,
 ) -> dict[str, Any] | None:
     """Say which categories the examples pin down and which they leave free (the trust reference's
     spreads, :mod:`~scenescore.models.freedom`), and, for :data:`FEW_SCENES` or fewer, how to place
-    with the examples' own relations (``source``: the data's file); the report's record of it."""
+    with the examples' own relations (``source``: the data's file), and, for fewer than
+    :data:`~scenescore.workflow.crossval.MIN_SCENES` from random weights (not ``started``), how to start
+    from the shipped prior; the report's record of it."""
     if len(scenes) <= FEW_SCENES:
         data = source if source is not None else "DATA.jsonl"
         say(
             f"with {len(scenes)} examples, `scenescore place MODEL SCENE --examples {data}` adds their own "
             'relations to the learned energy (docs/your-data.md, "A handful of examples")'
+        )
+    if len(scenes) < MIN_SCENES and not started:
+        say(
+            "`--init prior` starts the training from the shipped arrangement prior instead of random "
+            "weights; with `--examples` it placed best on the zoo at five scenes (docs/your-data.md)"
         )
     ref = model.trust
     if ref is None or ref.spreads is None:

@@ -93,7 +93,9 @@ def test_cli_trains_from_the_shipped_prior(tmp_path, capsys):
     write_jsonl(data, get("desk").generate(5, 3))
     args = ["train", str(data), "--out", str(out), "--init", "prior", "--iterations", "2", "--val", "0"]
     assert main([*args, "--folds", "1", "--force", "--quiet"]) == 0
-    assert "starting from the weights of prior" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "starting from the weights of prior" in said
+    assert "`--init prior` starts" not in said  # started from it: no hint to
     init = load(out).info.init
     assert init is not None and init["source"] == "prior"
 
