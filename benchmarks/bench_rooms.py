@@ -2,6 +2,7 @@
 
     python benchmarks/bench_rooms.py [--sizes 4,10,20,40,60,100] [--iterations 12] [--full]
     python benchmarks/bench_rooms.py --place-with classroom.ckpt
+    python benchmarks/bench_rooms.py --sizes 100 --write rooms100.jsonl
 
 Each size ``N`` is a zoo-classroom (``ClassroomScenario``) of ``N / 2`` desks, each with its chair, the
 room grown with the desks so that their density stays a classroom's. For each size and graph:
@@ -36,7 +37,7 @@ import scenescore as ss
 from scenescore.learn import TrainConfig
 from scenescore.runtime.threads import thread_budget
 from scenescore.scenarios.zoo.classroom import ClassroomScenario
-from scenescore.scene.scene import Scene
+from scenescore.scene.scene import Scene, write_jsonl
 
 MISSING = 3
 
@@ -156,7 +157,17 @@ def main() -> None:
         metavar="CKPT",
         help="only time placing 3 chairs of 40-object scenes with this trained classroom model (5 scenes)",
     )
+    ap.add_argument(
+        "--write",
+        metavar="JSONL",
+        help="only write 48 rooms of the first of --sizes objects (seed 0) to this file, for `scenescore train`",
+    )
     args = ap.parse_args()
+    if args.write:
+        n = int(args.sizes.split(",")[0])
+        write_jsonl(args.write, classroom(n).generate(48, 0))
+        print(f"wrote 48 rooms of {n} objects to {args.write}")
+        return
     if args.place_with:
         placing_only(ss.models.load(args.place_with))
         return

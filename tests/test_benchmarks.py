@@ -42,3 +42,16 @@ def test_every_benchmark_is_on_the_performance_page():
     page = (ROOT / "docs" / "performance.md").read_text()
     missing = [p.name for p in SCRIPTS if f"| `{p.name}` |" not in page]
     assert not missing, f"not in docs/performance.md's table of scripts: {missing}"
+
+
+def test_bench_rooms_writes_its_rooms_for_train(monkeypatch, capsys, tmp_path):
+    script = ROOT / "benchmarks" / "bench_rooms.py"
+    out = tmp_path / "rooms.jsonl"
+    monkeypatch.setattr(sys, "argv", [str(script), "--sizes", "10", "--write", str(out)])
+    monkeypatch.syspath_prepend(str(script.parent))
+    runpy.run_path(str(script), run_name="__main__")
+    from scenescore.scene.scene import read_jsonl
+
+    rooms = read_jsonl(out)
+    assert len(rooms) == 48 and {len(r) for r in rooms} == {10}
+    assert "wrote 48 rooms of 10 objects" in capsys.readouterr().out

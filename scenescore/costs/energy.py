@@ -39,12 +39,22 @@ class LearnedEnergy(Cost, Guide):
     (:mod:`scenescore.models.trust`: the poses its training data has): it proposes poses beside the
     scene's known objects, doubts pose sets that put a moving object where the data never had one of
     its category, and gives each moving object a confidence (:class:`~scenescore.models.trust.Assessment`).
+
+    ``relations``: whether a flagged object's flags end with the relation it doubts (:meth:`doubted`, an
+    explanation by integrated gradients over the whole scene, the costliest part of a verdict); False
+    where only the flags' count is read, as in a validation's table (the same flags otherwise).
     """
 
     needs_scene = True
     doubt_note = "put an object where its data has none (at a bound, far from the rest, or from a category)"
 
-    def __init__(self, model: ScoreModel, name: str = "energy", objects: Sequence[str] | None = None):
+    def __init__(
+        self,
+        model: ScoreModel,
+        name: str = "energy",
+        objects: Sequence[str] | None = None,
+        relations: bool = True,
+    ):
         if not hasattr(model, "energy_fn"):
             raise CostError(
                 f"LearnedEnergy: expected a ScoreModel (scenescore.models.load), got {type(model).__name__}"
@@ -56,6 +66,7 @@ class LearnedEnergy(Cost, Guide):
         self.model = model
         self.name = name
         self.objects = None if objects is None else list(objects)
+        self.relations = relations
         self._fn: Callable[[Tensor], Tensor] | None = None
         self._idx: Tensor | None = None
         self.visible_scene: Scene | None = None
@@ -170,7 +181,7 @@ class LearnedEnergy(Cost, Guide):
         on the object that no example shows, else the strongest, with how the examples bear it out
         (:meth:`~scenescore.models.explain.Explanation.doubt`)."""
         scene = self._seen_at(poses)
-        if scene is None or self.model.config.absolute:
+        if scene is None or self.model.config.absolute or not self.relations:
             return {}
         doubted = [
             n

@@ -105,14 +105,20 @@ def overlapping(model: ScoreModel, scene: Scene, names: list[str]) -> list[tuple
 
 
 def placement_problem(
-    model: ScoreModel, scene: Scene, energy_only: bool = False, extra: Cost | None = None
+    model: ScoreModel,
+    scene: Scene,
+    energy_only: bool = False,
+    extra: Cost | None = None,
+    relations: bool = True,
 ) -> Problem:
     """The problem :func:`place` solves, the unknown poses movable: the learned energy plus
     :func:`non_overlap` (``energy_only``: the learned energy alone, the paper's protocol), plus
-    ``extra`` when given (such as :class:`~scenescore.costs.ExampleRelations` of the example scenes)."""
+    ``extra`` when given (such as :class:`~scenescore.costs.ExampleRelations` of the example scenes).
+    ``relations``: whether a flagged placement's flags name the relation it doubts
+    (:class:`~scenescore.costs.LearnedEnergy`'s option of that name)."""
     if not scene.unknown:
         raise SceneError("place: the scene has no object with an unknown pose (pose: null) to place")
-    cost: Cost = LearnedEnergy(model)
+    cost: Cost = LearnedEnergy(model, relations=relations)
     hinge = None if energy_only else non_overlap(model, scene)
     if hinge is not None:
         cost = cost + (OVERLAP_WEIGHT / model.config.length_scale) * hinge
@@ -261,10 +267,13 @@ def place_many(
     options: LangevinOptions | None = None,
     seed: int = 0,
     energy_only: bool = False,
+    relations: bool = True,
 ) -> list[Scene]:
     """:func:`place` for several scenes at once: their problems solved together by
     :meth:`LangevinSolver.solve_many`, one batch per number of objects (the timings need it); without
-    ``options``, :data:`PLACE` covering each batch's largest bounds (:func:`covering`)."""
+    ``options``, :data:`PLACE` covering each batch's largest bounds (:func:`covering`). ``relations``:
+    False leaves the relation a flagged placement doubts out of its flags (:func:`placement_problem`),
+    where only whether it is flagged is read."""
     out = [s.copy() for s in scenes]
     groups: dict[int, list[int]] = {}
     for i, s in enumerate(scenes):
@@ -272,7 +281,7 @@ def place_many(
             groups.setdefault(len(s), []).append(i)
     with torch_threads(1):  # tiny tensors; each batched chain chooses threads for its particles
         for idx in groups.values():
-            problems = [placement_problem(model, scenes[i], energy_only) for i in idx]
+            problems = [placement_problem(model, scenes[i], energy_only, relations=relations) for i in idx]
             opts = options or covering(PLACE, model, [scenes[i] for i in idx])
             starts = [_starts(model, scenes[i], opts, seed + k, energy_only) for k, i in enumerate(idx)]
             init = None if any(x is None for x in starts) else cast(list[Tensor], starts)
@@ -345,6 +354,7 @@ class SceneScorePlacer:
     model: ScoreModel | None = None
     device: str | None = None  # where the model trains and places (default the CPU)
     cache: str | os.PathLike | None = None  # a model cache folder (see scenescore.learn.cache)
+    relations: bool = True  # a flagged placement's flags name the relation it doubts (placement_problem)
 
     def fit(self, scenes: list[Scene], seed: int = 0) -> SceneScorePlacer:
         self.model = fit(
@@ -366,7 +376,12 @@ class SceneScorePlacer:
         with tqdm(total=len(scenes), desc="place", unit="scene", disable=not self.progress) as bar:
             for k in range(0, len(scenes), batch):
                 out += place_many(
-                    model, scenes[k : k + batch], self.place_options, seed + k, self.energy_only
+                    model,
+                    scenes[k : k + batch],
+                    self.place_options,
+                    seed + k,
+                    self.energy_only,
+                    self.relations,
                 )
                 bar.update(len(scenes[k : k + batch]))
         return out

@@ -207,3 +207,27 @@ def test_an_ensemble_s_parts_are_its_members_mean():
         assert parts[name] == pytest.approx(
             np.mean([{r.neighbour: r.part for r in x.relations}[name] for x in each]), abs=1e-9
         )
+
+
+def test_a_flagged_placement_names_the_relation_it_doubts_unless_told_not_to(by_tray):
+    from scenescore.costs.guide import guides
+    from scenescore.models.trust import Assessment
+    from scenescore.planning.placement import place_many, placement_problem
+
+    scene = _both()
+    hole = scene.without("cup_0")
+    said = {}
+    for relations in (True, False):
+        (energy,) = guides(placement_problem(by_tray, hole, relations=relations).cost)
+        said[relations] = energy.doubted(scene.poses(), {"cup_0": Assessment(0.2, ["far: a test's flag"])})
+    assert said[True]["cup_0"].startswith("relation: its place rests most on") and said[False] == {}
+    # leaving the relation out changes neither the placement nor whether it is flagged
+    rng = np.random.default_rng(11)
+    holes = [_scene(rng, "book").without("cup_0") for _ in range(3)] + [hole]
+    named, plain = (place_many(by_tray, holes, seed=0, relations=r) for r in (True, False))
+    assert any(f.startswith("relation:") for s in named for f in s.meta["placement"]["cup_0"]["flags"])
+    for a, b in zip(named, plain):
+        assert np.array_equal(a.poses(), b.poses())
+        flags_a, flags_b = (s.meta["placement"]["cup_0"]["flags"] for s in (a, b))
+        assert [f for f in flags_a if not f.startswith("relation:")] == flags_b
+        assert not any(f.startswith("relation:") for f in flags_b)
