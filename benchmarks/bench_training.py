@@ -82,9 +82,10 @@ def matmul_rate(width: int, device: torch.device, rows: int = 65536, repeat: int
 
 
 def timed_step(tr: Training) -> float:
+    """One iteration's seconds, inside the training's session (held open by the caller, as ``fit``
+    holds it for the whole run)."""
     t = time.perf_counter()
-    with tr.session():
-        tr.step()
+    tr.step()
     if tr.device.type == "cuda":
         torch.cuda.synchronize()
     return time.perf_counter() - t
@@ -94,7 +95,7 @@ def work_of(scenes: list[ss.Scene], device: torch.device) -> tuple[float, int]:
     """GFLOP and aten calls of one eager iteration (after a first one, so that the chains are warm), on
     one thread: a dispatch mode counts its own thread's operations, so every piece runs in it."""
     tr = Training(scenes, TrainConfig(compile="off"), None, 0, device)
-    with thread_budget(1):
+    with thread_budget(1), tr.session():
         timed_step(tr)
         work = Work()
         with work:
@@ -106,19 +107,20 @@ def row(name: str, args: argparse.Namespace, device: torch.device) -> str:
     scenes = scenes_of(name)
     eager = Training(scenes, TrainConfig(compile="off"), None, 0, device)
     compiled = Training(scenes, TrainConfig(compile="on"), None, 0, device)
-    first = {"eager": [], "compiled": []}
-    for _ in range(args.warmup):
-        first["compiled"].append(timed_step(compiled))
-        first["eager"].append(timed_step(eager))
+    first: dict[str, list[float]] = {"eager": [], "compiled": []}
     times: dict[str, list[float]] = {"eager": [], "compiled": []}
-    for k in range(args.iterations):
-        order = (
-            (("eager", eager), ("compiled", compiled))
-            if k % 2
-            else (("compiled", compiled), ("eager", eager))
-        )
-        for label, tr in order:
-            times[label].append(timed_step(tr))
+    with eager.session(), compiled.session():
+        for _ in range(args.warmup):
+            first["compiled"].append(timed_step(compiled))
+            first["eager"].append(timed_step(eager))
+        for k in range(args.iterations):
+            order = (
+                (("eager", eager), ("compiled", compiled))
+                if k % 2
+                else (("compiled", compiled), ("eager", eager))
+            )
+            for label, tr in order:
+                times[label].append(timed_step(tr))
     e, c = statistics.median(times["eager"]), statistics.median(times["compiled"])
     compile_s = sum(first["compiled"]) - args.warmup * c
     gflop, calls = work_of(scenes, device)

@@ -160,8 +160,8 @@ class TrainConfig:
     # the network's passes compiled while it trains (torch.compile; scenescore.models.compiled): "on",
     # "off" (eager), or "auto": when the training's work is large enough (COMPILE_FROM) that compiling
     # pays for itself on a machine whose compiled-kernel cache is empty, a compiler is there and, on a
-    # CPU, the process has one core (compiled pieces of a batch do not run faster side by side, eager
-    # ones do, so a second core gives eager what compiling gives). The
+    # CPU, the process has one core (on more, "on" is the faster where the work is large: see
+    # docs/performance.md; the default keeps the models of the documented figures). The
     # two train the same function to float rounding, not the same weights: a seed names a model in
     # one mode
     compile: Compile = "auto"

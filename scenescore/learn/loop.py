@@ -14,8 +14,8 @@ import math
 import os
 import sys
 import time
-from collections.abc import Sequence
-from contextlib import AbstractContextManager
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -156,9 +156,13 @@ class Training:
         self.done = Progress()
         self.compiled = compiles(cfg, d, device.type)
 
-    def session(self) -> AbstractContextManager[None]:
-        """The block within which :meth:`step` runs (the network's passes compiled, if they are)."""
-        return compiling(self.model.net, self.device.type, self.compiled)
+    @contextmanager
+    def session(self) -> Iterator[None]:
+        """The block within which :meth:`step` runs: on one torch thread, as :func:`fit` trains (large
+        batches go in pieces side by side), the network's passes compiled if they are (a compiled graph
+        is kept for one thread count: the pieces' and the caller's must agree)."""
+        with torch_threads(1), compiling(self.model.net, self.device.type, self.compiled):
+            yield
 
     def step(self, writer: Any = None) -> None:
         """The next iteration: one optimiser step, the schedule's, the weights' average, the history."""

@@ -53,6 +53,7 @@ class Compiled:
 
         self._pose_grad = compile_fn(pose_grad, device_type)
         self._energy = compile_fn(energy, device_type)
+        self.traced = False  # whether pose_grad has run once (its graph compiled, or read from the cache)
 
     def pose_grad(self, resolved: Sequence[Any]) -> tuple[Tensor, Tensor]:
         """``(energies (B,), their gradient in the poses (B, N, 3))`` of one batch's resolved inputs."""
@@ -69,9 +70,15 @@ class Compiled:
 
 
 def _contiguous(resolved: Sequence[Any]) -> list[Any]:
-    """The inputs laid out densely: a size group cropped to fewer objects is a strided view, and the
-    compiler keeps one graph per layout."""
-    return [a.contiguous() if isinstance(a, Tensor) else a for a in resolved]
+    """The inputs laid out densely from the start of their own storage: a size group cropped to fewer
+    objects is a strided view, and a piece of a batch starts inside the batch's storage; the compiler
+    keeps one graph per layout, and another for a start at 0."""
+    return [_dense(a) if isinstance(a, Tensor) else a for a in resolved]
+
+
+def _dense(t: Tensor) -> Tensor:
+    """``t`` contiguous, copied where it starts inside a larger storage."""
+    return t.clone(memory_format=torch.contiguous_format) if t.storage_offset() else t.contiguous()
 
 
 _COMPILED: weakref.WeakKeyDictionary[Any, Compiled] = weakref.WeakKeyDictionary()
@@ -97,9 +104,9 @@ def compiling(net: EnergyNet, device_type: str, on: bool = True) -> Iterator[Non
 
 class CompiledPoseGrad(torch.autograd.Function):
     """The energies of a batch and their gradient in the poses, ``rows`` pose sets at a time through the
-    compiled ``pose_grad``: the first piece in the calling thread (it compiles the graph the first time),
-    the rest side by side; the backward pass scales the kept gradient. The other inputs and the weights
-    get no gradient."""
+    compiled ``pose_grad``, the pieces side by side (the first call's first piece alone in the calling
+    thread, which traces the graph that the others then share); the backward pass scales the kept
+    gradient. The other inputs and the weights get no gradient."""
 
     @staticmethod
     def forward(ctx: Any, net: EnergyNet, c: Compiled, rows: int, *inputs: Tensor | None) -> Tensor:
@@ -109,8 +116,10 @@ class CompiledPoseGrad(torch.autograd.Function):
             part = [None if t is None else t.detach() for t in rows_of(inputs, b, a, a + rows)]
             return c.pose_grad(net.resolve(*part))
 
-        first = piece(0)
-        done = [first, *in_parallel([partial(piece, a) for a in range(rows, b, rows)])]
+        starts = list(range(0, b, rows))
+        first = [] if c.traced else [piece(starts.pop(0))]
+        c.traced = True
+        done = [*first, *in_parallel([partial(piece, a) for a in starts])]
         ctx.save_for_backward(torch.cat([g for _, g in done]))
         return torch.cat([e for e, _ in done])
 

@@ -4,7 +4,11 @@ between runs, the compiler's mode for the device, and the per-thread settings a 
 Compiled kernels are kept in the user's cache folder (``inductor/``, :mod:`~scenescore.runtime.cache`)
 unless ``TORCHINDUCTOR_CACHE_DIR`` names another, so that a second run on this machine reads them
 instead of compiling again. On a CUDA device the compiled graphs replay as CUDA graphs
-(``mode="reduce-overhead"``): one launch per graph instead of one per kernel.
+(``mode="reduce-overhead"``): one launch per graph instead of one per kernel. On a CPU the graph's
+wrapper is C++ too (inductor's ``cpp_wrapper``): a call runs its kernels one after another without
+Python between them and without holding Python's GIL, so the pieces of a batch that run side by side
+on worker threads (:func:`~scenescore.runtime.threads.in_parallel`) use every core (a wrapper in
+Python holds the GIL for each kernel, and the pieces take turns).
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import torch
 
 from .cache import cache_folder
 
-__all__ = ["compile_fn", "compile_mode", "traced_autograd", "mark_batch"]
+__all__ = ["compile_fn", "compile_mode", "compile_options", "traced_autograd", "mark_batch"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 INDUCTOR_CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
@@ -31,11 +35,20 @@ def compile_mode(device_type: str) -> str:
     return "reduce-overhead" if device_type == "cuda" else "default"
 
 
+def compile_options(device_type: str) -> dict[str, Any] | None:
+    """inductor's options on a device of ``device_type`` (torch.compile takes them or a mode, not both):
+    the C++ wrapper on a CPU (see the module's description), None (the mode's) elsewhere."""
+    return {"cpp_wrapper": True} if device_type == "cpu" else None
+
+
 def compile_fn(fn: F, device_type: str) -> F:
     """``fn`` compiled as one graph (``fullgraph``: a break is an error, not a silent slow path), its
     kernels kept in the user's cache folder."""
     if not _USER_CACHE:
         os.environ[INDUCTOR_CACHE_ENV] = str(cache_folder("inductor"))
+    options = compile_options(device_type)
+    if options is not None:
+        return torch.compile(fn, fullgraph=True, options=options)  # type: ignore[return-value]
     return torch.compile(fn, fullgraph=True, mode=compile_mode(device_type))  # type: ignore[return-value]
 
 

@@ -91,6 +91,11 @@ def test_compiled_kernels_are_kept_in_the_users_cache_folder(monkeypatch, tmp_pa
     compiling.compile_fn(lambda x: x + 1, "cpu")
     assert os.environ[compiling.INDUCTOR_CACHE_ENV] == str(tmp_path / "theirs")
     assert compiling.compile_mode("cuda") == "reduce-overhead" and compiling.compile_mode("cpu") == "default"
+    # a CPU's graphs run their kernels from C++, without the GIL, so that pieces run side by side
+    assert (
+        compiling.compile_options("cpu") == {"cpp_wrapper": True}
+        and compiling.compile_options("cuda") is None
+    )
 
 
 def test_pooled_of_the_resolved_inputs_is_the_networks_own_pass():
@@ -99,3 +104,40 @@ def test_pooled_of_the_resolved_inputs_is_the_networks_own_pass():
     st = model.tensors(ss.scenarios.get("zoo-bedroom").generate(2, 0))
     args = (st.poses, st.feats, st.sizes, st.mask, None, st.round)
     assert torch.equal(model.net.pooled(*model.net.resolve(*args)), model.net._pooled(*args))
+
+
+def test_the_compiled_pose_gradients_pieces_run_side_by_side_once_traced(monkeypatch):
+    from scenescore.models import compiled
+
+    torch.manual_seed(0)
+    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
+    net = model.net
+    st = model.tensors(ss.scenarios.get("dining").generate(2, 0)).repeat(4)  # 8 pose sets
+    side_by_side: list[int] = []
+
+    def in_parallel(work, parallel=True):  # noqa: ANN001, ANN202
+        side_by_side.append(len(work))
+        return [w() for w in work]
+
+    class Eager:
+        """The compiled pass stood in for by the network's own (nothing compiled)."""
+
+        traced = False
+
+        def pose_grad(self, resolved):  # noqa: ANN001, ANN202
+            with torch.enable_grad():
+                x = resolved[0].detach().requires_grad_(True)
+                e = net.readout(net.pooled(x, *resolved[1:]))
+                (g,) = torch.autograd.grad(e.sum(), x)
+            return e.detach(), g.detach()
+
+    monkeypatch.setattr(compiled, "in_parallel", in_parallel)
+    stand_in = Eager()
+    for _ in range(2):
+        x = st.poses.clone().requires_grad_(True)
+        e = compiled.CompiledPoseGrad.apply(net, stand_in, 2, x, st.feats, st.sizes, st.mask, None, st.round)
+        (g,) = torch.autograd.grad(e.sum(), x)
+        assert torch.allclose(e, net(st.poses, st.feats, st.sizes, st.mask, round=st.round), atol=1e-6)
+        assert g.shape == x.shape
+    # the first call traces the graph with one piece alone, then every piece goes side by side
+    assert side_by_side == [3, 4] and stand_in.traced
