@@ -21,7 +21,7 @@ import torch
 
 from .cache import cache_folder
 
-__all__ = ["compile_fn", "compile_mode", "compile_options", "traced_autograd", "mark_batch"]
+__all__ = ["compile_fn", "compile_settings", "traced_autograd", "mark_batch"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 INDUCTOR_CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
@@ -30,15 +30,15 @@ INDUCTOR_CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
 _USER_CACHE = bool(os.environ.get(INDUCTOR_CACHE_ENV))
 
 
-def compile_mode(device_type: str) -> str:
-    """torch.compile's mode on a device of ``device_type``: CUDA graphs on CUDA, the default elsewhere."""
-    return "reduce-overhead" if device_type == "cuda" else "default"
-
-
-def compile_options(device_type: str) -> dict[str, Any] | None:
-    """inductor's options on a device of ``device_type`` (torch.compile takes them or a mode, not both):
-    the C++ wrapper on a CPU (see the module's description), None (the mode's) elsewhere."""
-    return {"cpp_wrapper": True} if device_type == "cpu" else None
+def compile_settings(device_type: str) -> dict[str, Any]:
+    """torch.compile's settings on a device of ``device_type`` (it takes a mode or inductor's options, not
+    both): CUDA graphs on CUDA (``mode="reduce-overhead"``), the C++ wrapper on a CPU (see the module's
+    description), the defaults elsewhere."""
+    if device_type == "cuda":
+        return {"mode": "reduce-overhead"}
+    if device_type == "cpu":
+        return {"options": {"cpp_wrapper": True}}
+    return {}
 
 
 def compile_fn(fn: F, device_type: str) -> F:
@@ -46,10 +46,7 @@ def compile_fn(fn: F, device_type: str) -> F:
     kernels kept in the user's cache folder."""
     if not _USER_CACHE:
         os.environ[INDUCTOR_CACHE_ENV] = str(cache_folder("inductor"))
-    options = compile_options(device_type)
-    if options is not None:
-        return torch.compile(fn, fullgraph=True, options=options)  # type: ignore[return-value]
-    return torch.compile(fn, fullgraph=True, mode=compile_mode(device_type))  # type: ignore[return-value]
+    return torch.compile(fn, fullgraph=True, **compile_settings(device_type))  # type: ignore[return-value]
 
 
 def traced_autograd() -> Any:

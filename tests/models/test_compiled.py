@@ -90,12 +90,10 @@ def test_compiled_kernels_are_kept_in_the_users_cache_folder(monkeypatch, tmp_pa
     monkeypatch.setenv(compiling.INDUCTOR_CACHE_ENV, str(tmp_path / "theirs"))
     compiling.compile_fn(lambda x: x + 1, "cpu")
     assert os.environ[compiling.INDUCTOR_CACHE_ENV] == str(tmp_path / "theirs")
-    assert compiling.compile_mode("cuda") == "reduce-overhead" and compiling.compile_mode("cpu") == "default"
+    assert compiling.compile_settings("cuda") == {"mode": "reduce-overhead"}
     # a CPU's graphs run their kernels from C++, without the GIL, so that pieces run side by side
-    assert (
-        compiling.compile_options("cpu") == {"cpp_wrapper": True}
-        and compiling.compile_options("cuda") is None
-    )
+    assert compiling.compile_settings("cpu") == {"options": {"cpp_wrapper": True}}
+    assert compiling.compile_settings("mps") == {}
 
 
 def test_pooled_of_the_resolved_inputs_is_the_networks_own_pass():
