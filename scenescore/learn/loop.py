@@ -25,7 +25,7 @@ from tqdm.auto import tqdm
 
 from ..encoders import Encoder
 from ..models import EnergyNet, ModelInfo, SceneTensors, ScoreModel, load
-from ..models.compiled import compiling
+from ..models.compiled import compiled_of, compiling
 from ..models.ensemble import EnsembleNet
 from ..models.trust import reference
 from ..runtime.devices import draw, generator, resolve_device
@@ -332,9 +332,22 @@ def _loss(
     # the chains need the poses' gradient alone: large batches go in pieces, side by side
     neg = buf.advance(rows, sizes.bound(model, rep, k, weight_grads=False), rep, d.chain, cfg.chain_steps)
     model.net.train()
-    e_pos = sizes.bound(model, batch)(batch.poses)
-    e_neg, e_real = _counter_energies(model, cfg, batch, sizes, sizes.bound(model, rep, k)(neg), gen)
-    return training_loss(cfg, model, e_pos, e_neg, e_real, neg, rep)
+    passes = [(batch.poses, batch, 1), (neg, rep, k)]
+    if cfg.perturbed:
+        pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
+        passes.append((pert, batch.repeat(cfg.perturbed), cfg.perturbed))
+    if cfg.reanchored:
+        poses, moved = reanchored_negatives(batch, cfg.reanchored, gen)
+        passes.append((poses, batch.repeat(cfg.reanchored), cfg.reanchored))
+    e_pos, *e_counter = _pass_energies(model, batch, sizes, passes)
+    bs = batch.mask.shape[0]
+    e_neg = torch.cat(e_counter[: 2 if cfg.perturbed else 1], dim=1)  # the chains', the perturbed
+    e_real = e_neg.flatten()  # the counter-examples that are there, for the energies' L2
+    if cfg.reanchored:  # a scene too small to re-anchor an object in scores ABSENT there
+        e_move, valid = e_counter[-1], moved.any(dim=1).reshape(bs, cfg.reanchored)
+        e_neg = torch.cat([e_neg, e_move.masked_fill(~valid, ABSENT)], dim=1)
+        e_real = torch.cat([e_real, e_move[valid]])
+    return training_loss(cfg, model, e_pos[:, 0], e_neg, e_real, neg, rep)
 
 
 def _batch(
@@ -365,31 +378,23 @@ def _batch(
     return rows, batch
 
 
-def _counter_energies(
+def _pass_energies(
     model: ScoreModel,
-    cfg: TrainConfig,
     batch: SceneTensors,
     sizes: SizeGroups,
-    e_chain: torch.Tensor,
-    gen: torch.Generator,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(e_neg (B, K'), e_real)``: the chains' energies ``e_chain (B * K,)`` with those of the perturbed
-    and the re-anchored counter-examples beside them, and the energies of those that are there (a scene
-    too small to re-anchor an object in scores :data:`~scenescore.learn.losses.ABSENT` there)."""
+    passes: Sequence[tuple[torch.Tensor, SceneTensors, int]],
+) -> list[torch.Tensor]:
+    """The energies ``(B, k)`` of each pass ``(poses (B * k, N, 3), the scenes repeated k times, k)``
+    of the batch's ``B`` scenes, differentiable in the weights: one call per pass, or, where the network's
+    passes are compiled, one call for them all (fewer, larger calls, whose pieces run side by side): the
+    same energies to float rounding."""
     bs = batch.mask.shape[0]
-    e_neg = e_chain.reshape(bs, cfg.negatives)
-    if cfg.perturbed:
-        pert = perturbed_negatives(batch, cfg.perturbed, cfg, gen, model.config.length_scale)
-        e_pert = sizes.bound(model, batch.repeat(cfg.perturbed), cfg.perturbed)(pert)
-        e_neg = torch.cat([e_neg, e_pert.reshape(bs, cfg.perturbed)], dim=1)
-    e_real = e_neg.flatten()  # the counter-examples that are there, for the energies' L2
-    if cfg.reanchored:
-        poses, moved = reanchored_negatives(batch, cfg.reanchored, gen)
-        e_move = sizes.bound(model, batch.repeat(cfg.reanchored), cfg.reanchored)(poses)
-        e_move, valid = e_move.reshape(bs, cfg.reanchored), moved.any(dim=1).reshape(bs, cfg.reanchored)
-        e_neg = torch.cat([e_neg, e_move.masked_fill(~valid, ABSENT)], dim=1)
-        e_real = torch.cat([e_real, e_move[valid]])
-    return e_neg, e_real
+    if compiled_of(model.net) is None:
+        return [sizes.bound(model, st, k)(x).reshape(bs, k) for x, st, k in passes]
+    m = sum(k for _, _, k in passes)
+    x = torch.cat([x.reshape(bs, k, *x.shape[1:]) for x, _, k in passes], dim=1).flatten(0, 1)
+    e = sizes.bound(model, batch.repeat(m), m)(x).reshape(bs, m)
+    return list(e.split([k for _, _, k in passes], dim=1))
 
 
 @torch.no_grad()

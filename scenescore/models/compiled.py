@@ -8,8 +8,12 @@ once its data's branches are settled) and its head:
   inside the graph (the counter-examples' Langevin steps). It is called with grad mode off, so that the
   compiler never prepares it to be differentiated again in the weights;
 - ``energy``: the energies with their graph for the weights' gradient (the loss's passes), forward and
-  backward both compiled.
+  backward both compiled (together, so that pieces differentiated side by side share one backward
+  graph).
 
+A large batch goes through either in pieces, one for each core, side by side (:class:`CompiledPoseGrad`,
+:class:`CompiledEnergy`); training calls the loss's passes as one batch (its true scenes and every kind
+of counter-example, :func:`scenescore.learn.loop._pass_energies`), so that the pieces are few and large.
 The batch and object dimensions vary from the first call, so pieces and size groups of any size share
 a graph. A network is compiled while it trains (:func:`compiling`) and is eager again after, so that
 placing and evaluating a model is the same whatever trained it. Compiled networks are kept beside the
@@ -21,20 +25,20 @@ from __future__ import annotations
 import weakref
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from functools import partial
+from functools import partial, reduce
 from typing import Any
 
 import torch
 from torch import Tensor
 from torch.autograd.function import once_differentiable
 
-from ..runtime import compile_fn, in_parallel, mark_batch, traced_autograd
+from ..runtime import backward_with_forward, compile_fn, in_parallel, mark_batch, traced_autograd
 from .chunks import rows_of
 
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
 
-__all__ = ["Compiled", "compiling", "compiled_of", "CompiledPoseGrad"]
+__all__ = ["Compiled", "compiling", "compiled_of", "CompiledPoseGrad", "CompiledEnergy"]
 
 
 class Compiled:
@@ -54,6 +58,7 @@ class Compiled:
         self._pose_grad = compile_fn(pose_grad, device_type)
         self._energy = compile_fn(energy, device_type)
         self.traced = False  # whether pose_grad has run once (its graph compiled, or read from the cache)
+        self.energy_traced = False  # the same of energy
 
     def pose_grad(self, resolved: Sequence[Any]) -> tuple[Tensor, Tensor]:
         """``(energies (B,), their gradient in the poses (B, N, 3))`` of one batch's resolved inputs."""
@@ -66,7 +71,8 @@ class Compiled:
         """The energies ``(B,)`` of one batch's resolved inputs, differentiable in the weights."""
         args = _contiguous(resolved)
         mark_batch(*[a for a in args if isinstance(a, Tensor)])
-        return self._energy(*args)
+        with backward_with_forward():
+            return self._energy(*args)
 
 
 def _contiguous(resolved: Sequence[Any]) -> list[Any]:
@@ -128,3 +134,48 @@ class CompiledPoseGrad(torch.autograd.Function):
     def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
         (g,) = ctx.saved_tensors
         return (None, None, None, grad[:, None, None] * g, None, None, None, None, None)
+
+
+class CompiledEnergy(torch.autograd.Function):
+    """The energies of a batch through the compiled ``energy``, ``rows`` pose sets at a time, the pieces
+    side by side, each keeping its own graph (the first call's first piece alone, as in
+    :class:`CompiledPoseGrad`); the backward pass differentiates the pieces side by side and sums their
+    weight gradients in the pieces' order, so the sum depends on the batch and the machine's core count,
+    never on the load. ``inputs``: the six inputs of the network's forward pass, then its weights, the
+    only inputs that get a gradient."""
+
+    @staticmethod
+    def forward(ctx: Any, net: EnergyNet, c: Compiled, rows: int, *inputs: Tensor | None) -> Tensor:
+        args = inputs[:6]
+        b = args[0].shape[0]  # type: ignore[union-attr]
+
+        def piece(a: int) -> Tensor:
+            part = [None if t is None else t.detach() for t in rows_of(args, b, a, a + rows)]
+            with torch.enable_grad():
+                return c.energy(net.resolve(*part))
+
+        starts = list(range(0, b, rows))
+        first = [] if c.energy_traced else [piece(starts.pop(0))]
+        c.energy_traced = True
+        ctx.pieces = [*first, *in_parallel([partial(piece, a) for a in starts])]
+        ctx.weights = inputs[6:]
+        return torch.cat([e.detach() for e in ctx.pieces])
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
+        pieces, weights = ctx.pieces, ctx.weights
+        del ctx.pieces
+        ends = torch.tensor([len(e) for e in pieces]).cumsum(0).tolist()
+
+        def piece(k: int) -> tuple[Tensor | None, ...]:
+            with torch.enable_grad():
+                a = ends[k - 1] if k else 0
+                return torch.autograd.grad(pieces[k], weights, grad[a : ends[k]], allow_unused=True)
+
+        done = in_parallel([partial(piece, k) for k in range(len(pieces))])
+        summed: list[Tensor | None] = []
+        for k in range(len(weights)):
+            parts = [g for d in done if (g := d[k]) is not None]
+            summed.append(reduce(torch.add, parts) if parts else None)
+        return (None, None, None, *([None] * 6), *summed)

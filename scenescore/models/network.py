@@ -22,7 +22,7 @@ from torch import Tensor, nn
 from ..errors import ConfigError, check_number
 from ..runtime import check_memory, chunk_rows, return_freed_memory, usable_cores
 from .chunks import ChunkedPooled, PoseGradInPieces, pooled_in_chunks
-from .compiled import CompiledPoseGrad, compiled_of
+from .compiled import CompiledEnergy, CompiledPoseGrad, compiled_of
 from .graph import WALLS, edge_features, neighbour_graph, senders, wall_nodes
 
 __all__ = [
@@ -344,7 +344,10 @@ class EnergyNet(nn.Module):
         if c is not None and grad:  # training's compiled passes (compiled.compiling)
             if not weight_grads and poses.requires_grad:  # a chain's pose gradient
                 return CompiledPoseGrad.apply(self, c, piece, *args)
-            if weight_grads and b <= rows:  # the loss's energies
+            if weight_grads and b <= rows:  # the loss's energies, in a piece for each core where it pays
+                shares = min(usable_cores(), edges // PIECE_EDGES)
+                if shares > 1 and not any(t is not None and t.requires_grad for t in args):
+                    return CompiledEnergy.apply(self, c, -(-b // shares), *args, *self.parameters())
                 return c.energy(self.resolve(*args))
         if poses.device.type == "cpu" and b > piece:
             if not grad:

@@ -21,7 +21,7 @@ import torch
 
 from .cache import cache_folder
 
-__all__ = ["compile_fn", "compile_settings", "traced_autograd", "mark_batch"]
+__all__ = ["compile_fn", "compile_settings", "traced_autograd", "backward_with_forward", "mark_batch"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 INDUCTOR_CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
@@ -53,6 +53,14 @@ def traced_autograd() -> Any:
     """The settings a compiled call that takes a gradient inside its graph needs, for the calling thread
     (torch keeps the compiler's settings per thread: a worker thread does not see the caller's)."""
     return torch._dynamo.config.patch(trace_autograd_ops=True)
+
+
+def backward_with_forward() -> Any:
+    """The setting, for the calling thread, under which a compiled call that will be differentiated
+    compiles its backward graph with its forward one, under the compiler's lock; by default the
+    backward graph compiles at the first backward pass, which takes no lock, so that two threads
+    differentiating their pieces at once could both compile it."""
+    return torch._functorch.config.patch(force_non_lazy_backward_lowering=True)
 
 
 def mark_batch(*tensors: torch.Tensor | None) -> None:

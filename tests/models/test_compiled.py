@@ -24,11 +24,20 @@ def _weights(model: ss.models.ScoreModel) -> list[torch.Tensor]:
 
 @pytest.mark.slow
 @pytest.mark.float_order
-def test_compiled_training_is_eagers_function_and_a_seed_names_its_model():
+def test_compiled_training_is_eagers_function_and_a_seed_names_its_model(monkeypatch):
+    from scenescore.models import compiled, network
+
+    # small pieces on two cores, whatever this machine has: the chains' and the loss's pieces side by side
+    monkeypatch.setattr(network, "PIECE_EDGES", 512)
+    monkeypatch.setattr(network, "usable_cores", lambda: 2)
+    in_pieces = []
+    apply = compiled.CompiledEnergy.apply
+    monkeypatch.setattr(compiled.CompiledEnergy, "apply", lambda *a: in_pieces.append(a[2]) or apply(*a))
     scenes = ss.scenarios.get("dining").generate(6, 0)
     eager = ss.learn.fit(scenes, replace(TINY, compile="off"), seed=0, progress=False)
     once = ss.learn.fit(scenes, replace(TINY, compile="on"), seed=0, progress=False)
     assert once.info.compiled and not eager.info.compiled
+    assert in_pieces  # the loss's passes went in one call, in pieces
     # the same function: the losses and weights agree to float rounding, not bit for bit
     assert once.info.history == pytest.approx(eager.info.history, rel=1e-4)
     for a, b in zip(_weights(once), _weights(eager), strict=True):
@@ -139,3 +148,62 @@ def test_the_compiled_pose_gradients_pieces_run_side_by_side_once_traced(monkeyp
         assert g.shape == x.shape
     # the first call traces the graph with one piece alone, then every piece goes side by side
     assert side_by_side == [3, 4] and stand_in.traced
+
+
+def test_the_compiled_losss_pieces_give_the_whole_batchs_energies_and_weight_gradients(monkeypatch):
+    from scenescore.models import compiled
+
+    torch.manual_seed(0)
+    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
+    net = model.net
+    st = model.tensors(ss.scenarios.get("dining").generate(2, 0)).repeat(4)  # 8 pose sets
+    args = (st.poses, st.feats, st.sizes, st.mask, None, st.round)
+    side_by_side: list[int] = []
+
+    def in_parallel(work, parallel=True):  # noqa: ANN001, ANN202
+        side_by_side.append(len(work))
+        return [w() for w in work]
+
+    class Eager:
+        """The compiled pass stood in for by the network's own (nothing compiled)."""
+
+        energy_traced = False
+
+        def energy(self, resolved):  # noqa: ANN001, ANN202
+            return net.readout(net.pooled(*resolved))
+
+    monkeypatch.setattr(compiled, "in_parallel", in_parallel)
+    weights = list(net.parameters())
+    whole = net(*args)
+    want = torch.autograd.grad((whole * torch.arange(8.0)).sum(), weights)
+    stand_in = Eager()
+    for _ in range(2):
+        e = compiled.CompiledEnergy.apply(net, stand_in, 3, *args, *weights)
+        got = torch.autograd.grad((e * torch.arange(8.0)).sum(), weights)
+        assert torch.allclose(e, whole, atol=1e-6)
+        for a, b in zip(got, want, strict=True):
+            assert torch.allclose(a, b, rtol=1e-5, atol=1e-6)
+    # three pieces: the first call's first alone, then every forward and backward side by side
+    assert side_by_side == [2, 3, 3, 3] and stand_in.energy_traced
+
+
+def test_the_losss_passes_in_one_call_give_each_passs_energies(monkeypatch):
+    from scenescore.learn import loop
+    from scenescore.learn.size_groups import SizeGroups
+
+    torch.manual_seed(0)
+    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
+    batch = model.tensors(ss.scenarios.get("zoo-books").generate(4, 0))  # 4 to 24 objects: size groups
+    sizes = SizeGroups(batch.mask.sum(dim=1))
+    assert len(sizes.groups) > 1
+    g = torch.Generator().manual_seed(0)
+    passes = [(batch.poses, batch, 1)]
+    for k in (3, 2):
+        st = batch.repeat(k)
+        passes.append((st.poses + 0.05 * torch.randn(st.poses.shape, generator=g), st, k))
+    apart = loop._pass_energies(model, batch, sizes, passes)
+    monkeypatch.setattr(loop, "compiled_of", lambda net: object())  # as training's compiled passes call it
+    together = loop._pass_energies(model, batch, sizes, passes)
+    assert [e.shape for e in together] == [e.shape for e in apart] == [(4, 1), (4, 3), (4, 2)]
+    for a, b in zip(together, apart, strict=True):
+        assert torch.allclose(a, b, rtol=1e-5, atol=1e-5)
