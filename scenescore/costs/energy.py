@@ -16,6 +16,7 @@ from ..models.casadi import energy_mx
 from ..models.explain import Explanation, explain
 from ..models.flags import assess
 from ..models.model import with_walls
+from ..models.network import round_flags
 from ..models.rivals import rivals
 from ..models.trust import CAVEAT, Assessment, outside_data
 from ..runtime import draw
@@ -112,10 +113,11 @@ class LearnedEnergy(Cost, Guide):
         rows = torch.arange(len(es), device=model.device).repeat_interleave(reps)
         st = st.repeat(1).index(rows)  # one row per particle
         nodes = nodes.repeat_interleave(reps, dim=0)
+        rnd = round_flags(model.config, st.round)
 
         def fn(poses: Tensor) -> Tensor:
             x = with_walls(poses.to(model.dtype), st)
-            e = model.net(x, None, None, st.mask, nodes=nodes, round=st.round, weight_grads=False)
+            e = model.net(x, None, None, st.mask, nodes=nodes, round=rnd, weight_grads=False)
             return e.to(poses.dtype)
 
         return fn

@@ -26,6 +26,7 @@ from torch import Tensor
 from ..models import ScoreModel
 from ..models.batching import SceneTensors
 from ..models.model import with_walls
+from ..models.network import round_flags
 from ..scene.scene import Scene, SceneObject
 from .base import Cost, CostError, check_scene_names
 from .spec import CostSpec, SpecContext, register_cost_type
@@ -121,6 +122,7 @@ class Relation(Cost):
         self.name = name or "relation(" + "; ".join(", ".join(r) for r in self.instances) + ")"
         self._idx: Tensor | None = None  # (K, m) scene indices of each instance's objects
         self._st: SceneTensors | None = None  # the K role scenes, encoded
+        self._round = False  # whether one of their objects is round (read once, at binding)
         self._nodes: Tensor | None = None  # (K, m, D) their node embeddings
 
     def model_device(self) -> torch.device:
@@ -151,6 +153,7 @@ class Relation(Cost):
         with torch.no_grad():
             self._st = self.model.tensors(self.role_scenes())
             self._nodes = self.model.net.node_embedding(self._st.feats, self._st.sizes)
+            self._round = round_flags(self.model.config, self._st.round) is not None
 
     def evaluate(self, poses: Tensor) -> Tensor:
         """``sum_k E_k(poses of instance k)``: the K instances' poses stacked on the batch, one call."""
@@ -167,7 +170,13 @@ class Relation(Cost):
         rows = torch.arange(k, device=poses.device).repeat_interleave(b)
         sk = st.index(rows)
         e = self.model.net(
-            with_walls(x, sk), None, None, sk.mask, nodes=nodes[rows], round=sk.round, weight_grads=False
+            with_walls(x, sk),
+            None,
+            None,
+            sk.mask,
+            nodes=nodes[rows],
+            round=sk.round if self._round else None,
+            weight_grads=False,
         )
         return e.reshape(k, b).sum(0).to(poses.dtype)
 

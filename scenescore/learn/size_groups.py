@@ -41,19 +41,19 @@ class SizeGroups:
         self, model: ScoreModel, st: SceneTensors, k: int = 1, weight_grads: bool = True
     ) -> Callable[[torch.Tensor], torch.Tensor]:
         """``poses (S * k, N, 3) -> model.energy(poses, st, weight_grads)`` for ``k`` rows per scene, each
-        group's rows and cropped tensors made once (the chain calls it at every step)."""
+        group's rows, cropped tensors and round objects made once (the chain calls it at every step)."""
         if len(self.groups) == 1:
-            return lambda poses: model.energy(poses, st, weight_grads)
+            return model.energy_for(st, weight_grads)
         parts = []
         for scenes, n in self.groups:
             r = torch.tensor([i * k + j for i in scenes for j in range(k)], device=st.poses.device)
-            parts.append((r, n, cropped(st.index(r), n)))
+            parts.append((r, n, model.energy_for(cropped(st.index(r), n), weight_grads)))
         order = torch.cat([r for r, _, _ in parts])
         inverse = torch.empty_like(order)
         inverse[order] = torch.arange(len(order), device=order.device)
 
         def energy(poses: torch.Tensor) -> torch.Tensor:
-            return torch.cat([model.energy(poses[r, :n], sub, weight_grads) for r, n, sub in parts])[inverse]
+            return torch.cat([fn(poses[r, :n]) for r, n, fn in parts])[inverse]
 
         return energy
 

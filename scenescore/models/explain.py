@@ -30,6 +30,7 @@ from ..scene.scene import Scene, wrap_angle
 from ..scene.units import length_unit
 from .ensemble import members_of
 from .model import with_walls
+from .network import round_flags
 
 __all__ = ["DIRECTIONS", "MATCH", "RINGS", "Explanation", "Relation", "explain", "well_depth"]
 
@@ -192,7 +193,8 @@ def _member_parts(
         seen.update(e=e, pair=pair, index=index)
 
     feats, sizes = st.feats.double().expand(b, -1, -1), st.sizes.double().expand(b, -1, -1)
-    mask, rnd = st.mask.expand(b, -1), st.round.expand(b, -1)
+    some = round_flags(net.cfg, st.round) is not None
+    mask, rnd = st.mask.expand(b, -1), st.round.expand(b, -1) if some else None
     with torch.enable_grad():
         energy = net.readout(net.pooled(*net.resolve(x, feats, sizes, mask, None, rnd), tap=tap))
         energy.sum().backward()

@@ -144,8 +144,9 @@ def neighbour_graph(
     if wall_edges is None:
         wall_edges = walls is not None and bool(walls.any())
     if walls is not None and wall_edges:
-        # the walls are each row's last WALLS real nodes (wall_nodes), real nodes come first
-        first = mask.sum(dim=1, keepdim=True) - WALLS
+        # the walls are each row's last WALLS real nodes (wall_nodes), real nodes come first; a row of
+        # padding alone reads nothing (its weights are zero) from indices that stay in the row
+        first = (mask.sum(dim=1, keepdim=True) - WALLS).clamp(min=0)
         w_index = (first + torch.arange(WALLS, device=pos.device))[:, None, :].expand(b, n, WALLS)
         w_ok = mask[:, :, None] & (w_index != torch.arange(n, device=pos.device)[None, :, None])
         index = torch.cat([index, w_index], dim=2)

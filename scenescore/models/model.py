@@ -17,7 +17,7 @@ from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from .ensemble import MAX_MEMBERS, EnsembleNet, members_of
 from .info import ModelInfo
-from .network import EnergyConfig, EnergyNet, parameter_count
+from .network import EnergyConfig, EnergyNet, parameter_count, round_flags
 from .trust import TrustReference
 
 __all__ = ["ScoreModel", "load", "with_walls"]
@@ -58,7 +58,10 @@ class ScoreModel(nn.Module):
         """Each member's energy of ``poses (B, N, 3)`` for scenes ``st`` (as :meth:`energy`): ``(members, B)``."""
         if isinstance(self.net, EnsembleNet):
             feats, sizes, mask, rnd = _broadcast(st, poses.shape[0])
-            return self.net.member_energies(poses, feats, sizes, mask, round=rnd, weight_grads=False)
+            some = round_flags(self.config, rnd) is not None
+            return self.net.member_energies(
+                poses, feats, sizes, mask, round=rnd if some else None, weight_grads=False
+            )
         return self.energy(poses, st, weight_grads=False)[None]
 
     def tensors(self, scenes: Sequence[Scene]) -> SceneTensors:
@@ -79,8 +82,20 @@ class ScoreModel(nn.Module):
     def energy(self, poses: Tensor, st: SceneTensors, weight_grads: bool = True) -> Tensor:
         """Energy of ``poses (B, N, 3)`` for scenes ``st`` (batch B, or 1 broadcast over B) -> ``(B,)``;
         ``weight_grads=False``: a gradient for the poses alone (sampling; see :meth:`EnergyNet.forward`)."""
-        feats, sizes, mask, rnd = _broadcast(st, poses.shape[0])
-        return self.net(poses, feats, sizes, mask, round=rnd, weight_grads=weight_grads)
+        return self.energy_for(st, weight_grads)(poses)
+
+    def energy_for(self, st: SceneTensors, weight_grads: bool = True) -> Callable[[Tensor], Tensor]:
+        """:meth:`energy` for the scenes ``st``, their round objects read once (the device waited on
+        here, not at every call: a chain calls it at every step)."""
+        rnd = round_flags(self.config, st.round)
+
+        def fn(poses: Tensor) -> Tensor:
+            feats, sizes, mask, r = _broadcast(st, poses.shape[0])
+            return self.net(
+                poses, feats, sizes, mask, round=None if rnd is None else r, weight_grads=weight_grads
+            )
+
+        return fn
 
     def energy_fn(self, scene: Scene) -> Callable[[Tensor], Tensor]:
         """``poses (B, N, 3) -> (B,)`` conditioned on one scene's objects (node embeddings computed once).
@@ -92,12 +107,13 @@ class ScoreModel(nn.Module):
     def energy_fn_for(self, st: SceneTensors) -> Callable[[Tensor], Tensor]:
         """As :meth:`energy_fn`, for an already encoded single scene."""
         nodes = self.net.node_embedding(st.feats, st.sizes)  # (1, N, D)
+        rnd = round_flags(self.config, st.round)
 
         def fn(poses: Tensor) -> Tensor:
             b = poses.shape[0]
             mask = st.mask.expand(b, -1)
             return self.net(
-                with_walls(poses, st), None, None, mask, nodes=nodes, round=st.round, weight_grads=False
+                with_walls(poses, st), None, None, mask, nodes=nodes, round=rnd, weight_grads=False
             )
 
         return fn

@@ -33,6 +33,7 @@ __all__ = [
     "edge_features",
     "make_activation",
     "parameter_count",
+    "round_flags",
     "wall_nodes",
 ]
 
@@ -165,6 +166,15 @@ PIECE_EDGES = 4096
 # every layer's are kept for the backward pass
 _EDGE_FLOATS = 32
 _LAYER_FLOATS = 16
+
+
+def round_flags(cfg: EnergyConfig, round: Tensor | None) -> Tensor | None:
+    """``round`` where a network of ``cfg`` reads round objects and one of them is, else None: scenes
+    without a round object take the plain path (the same numbers, less work). It reads the device once:
+    made once per batch of scenes (a problem, a size group), not at each step of a chain."""
+    if round is None or not cfg.round_invariant or not bool(round.any()):
+        return None
+    return round
 
 
 def make_activation(name: str) -> nn.Module:
@@ -318,7 +328,8 @@ class EnergyNet(nn.Module):
         weight_grads: bool = True,
     ) -> Tensor:
         """Energy per scene. ``nodes`` may carry a precomputed :meth:`node_embedding` (broadcast over B);
-        ``round (B or 1, N)``: the round objects, whose headings a ``round_invariant`` network ignores.
+        ``round (B or 1, N)``: the round objects, whose headings a ``round_invariant`` network ignores
+        (None where none is: :func:`round_flags`).
 
         A batch larger than :meth:`chunk_rows` goes through the message layers in chunks of rows (with a
         gradient, each chunk is recomputed in the backward pass instead of kept), and the head sees the
@@ -392,13 +403,12 @@ class EnergyNet(nn.Module):
         b, n, _ = poses.shape
         if mask is None:
             mask = torch.ones(b, n, dtype=torch.bool, device=poses.device)
-        # scenes without a round object take the plain path (the same numbers, less work)
-        rnd = None
-        if round is not None and self.cfg.round_invariant and bool(round.any()):
-            rnd = round.expand(b, n)
+        # nothing here reads a tensor's values, which would wait on the device at every step of a chain:
+        # a caller gives ``round`` only where some object is round (:func:`round_flags`, once per batch
+        # of scenes), and a network with walls has them in every row that has an object
+        rnd = round.expand(b, n) if round is not None and self.cfg.round_invariant else None
         walls = wall_nodes(mask).expand(b, n) if self.cfg.walls else None
-        wall_edges = walls is not None and bool(walls.any())
-        return poses, feats, sizes, mask, nodes, rnd, walls, wall_edges
+        return poses, feats, sizes, mask, nodes, rnd, walls, walls is not None
 
     def pooled(
         self,
