@@ -75,6 +75,7 @@ from scenescore.learn.training_state import Progress, Trainer
 from scenescore.models import EnergyNet, ScoreModel
 from scenescore.models import network as network_module
 from scenescore.models.graph import neighbour_graph, wall_nodes
+from scenescore.models.network import round_flags
 from scenescore.runtime import in_parallel
 from scenescore.runtime.devices import draw, generator
 from scenescore.solvers.kernel import langevin as library_langevin
@@ -98,9 +99,8 @@ torch._dynamo.config.accumulated_recompile_limit = 4096
 def resolve_round(net: EnergyNet, round: torch.Tensor | None, b: int, n: int) -> torch.Tensor | None:
     """``_pooled``'s branch taken outside the compiled region: the round flags ``(B, N)`` when the network
     ignores round disks' headings and some scene has one, else None (the plain path, the same numbers)."""
-    if round is not None and net.cfg.round_invariant and bool(round.any()):
-        return round.expand(b, n)
-    return None
+    rnd = round_flags(net.cfg, round)
+    return None if rnd is None else rnd.expand(b, n)
 
 
 def pooled_resolved(

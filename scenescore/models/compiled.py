@@ -26,6 +26,7 @@ import weakref
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from functools import partial, reduce
+from itertools import accumulate
 from typing import Any
 
 import torch
@@ -166,12 +167,12 @@ class CompiledEnergy(torch.autograd.Function):
     def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
         pieces, weights = ctx.pieces, ctx.weights
         del ctx.pieces
-        ends = torch.tensor([len(e) for e in pieces]).cumsum(0).tolist()
+        starts = [0, *accumulate(len(e) for e in pieces)]
 
         def piece(k: int) -> tuple[Tensor | None, ...]:
             with torch.enable_grad():
-                a = ends[k - 1] if k else 0
-                return torch.autograd.grad(pieces[k], weights, grad[a : ends[k]], allow_unused=True)
+                out = grad[starts[k] : starts[k + 1]]
+                return torch.autograd.grad(pieces[k], weights, out, allow_unused=True)
 
         done = in_parallel([partial(piece, k) for k in range(len(pieces))])
         summed: list[Tensor | None] = []

@@ -193,8 +193,7 @@ def _member_parts(
         seen.update(e=e, pair=pair, index=index)
 
     feats, sizes = st.feats.double().expand(b, -1, -1), st.sizes.double().expand(b, -1, -1)
-    some = round_flags(net.cfg, st.round) is not None
-    mask, rnd = st.mask.expand(b, -1), st.round.expand(b, -1) if some else None
+    mask, rnd = st.mask.expand(b, -1), round_flags(net.cfg, st.round)
     with torch.enable_grad():
         energy = net.readout(net.pooled(*net.resolve(x, feats, sizes, mask, None, rnd), tap=tap))
         energy.sum().backward()

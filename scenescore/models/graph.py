@@ -118,15 +118,14 @@ def neighbour_graph(
     walls: Tensor | None,
     neighbours: int,
     radius: float,
-    wall_edges: bool | None = None,
 ) -> tuple[Tensor | None, Tensor]:
     """The local graph of a batch: each node's ``neighbours`` nearest objects by :func:`footprint_gaps`
     (walls never among them), then the walls, ``index (B, N, S)``, and each edge's weight ``(B, N, S)``:
     :func:`fade` of the gap; one from a wall; zero for padding, a node itself and gaps beyond ``radius``.
     Walls are read by every node and read only each other. When every object fits in the list the graph
     is dense: ``(None, weight (B, N, N))``, the same energy without the gathering. The choice of
-    neighbours has no gradient; the weights do. ``wall_edges``: whether any row has a wall node, when
-    the caller knows (else read from ``walls``, which waits on the device)."""
+    neighbours has no gradient; the weights do. Nothing here reads a tensor's values back (a chain
+    builds the graph at every step)."""
     b, n = mask.shape
     objects = mask if walls is None else mask & ~walls
     eye = torch.eye(n, dtype=torch.bool, device=pos.device)
@@ -141,9 +140,7 @@ def neighbour_graph(
         near, index = gap.topk(neighbours, dim=-1, largest=False)
         ok = torch.isfinite(near)
     weight = fade(footprint_gaps(pos, reach, index), radius) * ok
-    if wall_edges is None:
-        wall_edges = walls is not None and bool(walls.any())
-    if walls is not None and wall_edges:
+    if walls is not None:
         # the walls are each row's last WALLS real nodes (wall_nodes), real nodes come first; a row of
         # padding alone reads nothing (its weights are zero) from indices that stay in the row
         first = (mask.sum(dim=1, keepdim=True) - WALLS).clamp(min=0)

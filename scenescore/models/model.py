@@ -58,9 +58,8 @@ class ScoreModel(nn.Module):
         """Each member's energy of ``poses (B, N, 3)`` for scenes ``st`` (as :meth:`energy`): ``(members, B)``."""
         if isinstance(self.net, EnsembleNet):
             feats, sizes, mask, rnd = _broadcast(st, poses.shape[0])
-            some = round_flags(self.config, rnd) is not None
             return self.net.member_energies(
-                poses, feats, sizes, mask, round=rnd if some else None, weight_grads=False
+                poses, feats, sizes, mask, round=round_flags(self.config, rnd), weight_grads=False
             )
         return self.energy(poses, st, weight_grads=False)[None]
 
@@ -90,10 +89,8 @@ class ScoreModel(nn.Module):
         rnd = round_flags(self.config, st.round)
 
         def fn(poses: Tensor) -> Tensor:
-            feats, sizes, mask, r = _broadcast(st, poses.shape[0])
-            return self.net(
-                poses, feats, sizes, mask, round=None if rnd is None else r, weight_grads=weight_grads
-            )
+            feats, sizes, mask, _ = _broadcast(st, poses.shape[0])
+            return self.net(poses, feats, sizes, mask, round=rnd, weight_grads=weight_grads)
 
         return fn
 

@@ -348,15 +348,14 @@ class EnergyNet(nn.Module):
         args = (poses, feats, sizes, mask, nodes, round)
         per_row = n * self.reads(n)  # edges of one pose set
         piece = min(rows, max(1, CACHE_EDGES // per_row))
-        edges = b * per_row
-        if edges >= 2 * PIECE_EDGES:  # enough work to share: a piece for each core, none too small
-            piece = min(piece, -(-b // min(usable_cores(), edges // PIECE_EDGES)))
+        shares = min(usable_cores(), b * per_row // PIECE_EDGES)  # a piece for each core, none too small
+        if shares > 1:  # enough work to share
+            piece = min(piece, -(-b // shares))
         c = compiled_of(self)
         if c is not None and grad:  # training's compiled passes (compiled.compiling)
             if not weight_grads and poses.requires_grad:  # a chain's pose gradient
                 return CompiledPoseGrad.apply(self, c, piece, *args)
             if weight_grads and b <= rows:  # the loss's energies, in a piece for each core where it pays
-                shares = min(usable_cores(), edges // PIECE_EDGES)
                 if shares > 1 and not any(t is not None and t.requires_grad for t in args):
                     return CompiledEnergy.apply(self, c, -(-b // shares), *args, *self.parameters())
                 return c.energy(self.resolve(*args))
@@ -394,12 +393,9 @@ class EnergyNet(nn.Module):
         mask: Tensor | None,
         nodes: Tensor | None,
         round: Tensor | None,
-    ) -> tuple[
-        Tensor, Tensor | None, Tensor | None, Tensor, Tensor | None, Tensor | None, Tensor | None, bool
-    ]:
-        """:meth:`pooled`'s inputs: what depends on the data's values (whether any object is round,
-        whether the rows have walls) settled here, so that :meth:`pooled` has no branch but on the
-        network's settings and which inputs are given."""
+    ) -> tuple[Tensor, Tensor | None, Tensor | None, Tensor, Tensor | None, Tensor | None, Tensor | None]:
+        """:meth:`pooled`'s inputs: the mask, the round flags and the wall nodes laid out here, so that
+        :meth:`pooled` has no branch but on the network's settings and which inputs are given."""
         b, n, _ = poses.shape
         if mask is None:
             mask = torch.ones(b, n, dtype=torch.bool, device=poses.device)
@@ -408,7 +404,7 @@ class EnergyNet(nn.Module):
         # of scenes), and a network with walls has them in every row that has an object
         rnd = round.expand(b, n) if round is not None and self.cfg.round_invariant else None
         walls = wall_nodes(mask).expand(b, n) if self.cfg.walls else None
-        return poses, feats, sizes, mask, nodes, rnd, walls, walls is not None
+        return poses, feats, sizes, mask, nodes, rnd, walls
 
     def pooled(
         self,
@@ -419,12 +415,11 @@ class EnergyNet(nn.Module):
         nodes: Tensor | None,
         rnd: Tensor | None,
         walls: Tensor | None,
-        wall_edges: bool,
         tap: Callable[[Tensor, Tensor, Tensor | None], None] | None = None,
     ) -> Tensor:
         """:meth:`_pooled` once the data's branches are settled: ``mask (B, N)``; ``rnd (B, N)`` the round
-        objects, or None for none; ``walls (B, N)`` the wall nodes (a network with walls), and
-        ``wall_edges`` whether any row has one. The same operations for any values of the tensors:
+        objects, or None for none; ``walls (B, N)`` the wall nodes (a network with walls), or None.
+        The same operations for any values of the tensors:
         what :mod:`~scenescore.models.compiled` compiles. ``tap``: called with the edges the message
         layers read, their weights (``(B, N, N or S, ...)``, ``(B, N, N or S)``) and the local graph's
         ``index`` (None: dense), the tensors through which alone the poses act on the energy (:mod:`~scenescore.models.explain` splits the energy
@@ -443,7 +438,7 @@ class EnergyNet(nn.Module):
             reach = 0.5 * v[..., -2:].amax(dim=-1)  # half the longer side (length scales): see node_embedding
             pos = poses[..., :2] / self.cfg.length_scale
             index, pair = neighbour_graph(
-                pos, reach, mask.expand(b, n), walls, self.cfg.neighbours, self.cfg.radius, wall_edges
+                pos, reach, mask.expand(b, n), walls, self.cfg.neighbours, self.cfg.radius
             )
         else:
             eye = torch.eye(n, dtype=poses.dtype, device=poses.device)

@@ -113,33 +113,50 @@ def test_pooled_of_the_resolved_inputs_is_the_networks_own_pass():
     assert torch.equal(model.net.pooled(*model.net.resolve(*args)), model.net._pooled(*args))
 
 
-def test_the_compiled_pose_gradients_pieces_run_side_by_side_once_traced(monkeypatch):
+class EagerStandIn:
+    """A network's compiled passes stood in for by its own (nothing compiled)."""
+
+    def __init__(self, net: ss.models.EnergyNet):
+        self.net = net
+        self.traced = self.energy_traced = False
+
+    def pose_grad(self, resolved):  # noqa: ANN001, ANN201
+        with torch.enable_grad():
+            x = resolved[0].detach().requires_grad_(True)
+            e = self.net.readout(self.net.pooled(x, *resolved[1:]))
+            (g,) = torch.autograd.grad(e.sum(), x)
+        return e.detach(), g.detach()
+
+    def energy(self, resolved):  # noqa: ANN001, ANN201
+        return self.net.readout(self.net.pooled(*resolved))
+
+
+@pytest.fixture
+def side_by_side(monkeypatch) -> list[int]:
+    """The number of pieces each call of the compiled passes' ``in_parallel`` was given (run in turn)."""
     from scenescore.models import compiled
 
-    torch.manual_seed(0)
-    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
-    net = model.net
-    st = model.tensors(ss.scenarios.get("dining").generate(2, 0)).repeat(4)  # 8 pose sets
-    side_by_side: list[int] = []
+    counts: list[int] = []
 
     def in_parallel(work, parallel=True):  # noqa: ANN001, ANN202
-        side_by_side.append(len(work))
+        counts.append(len(work))
         return [w() for w in work]
 
-    class Eager:
-        """The compiled pass stood in for by the network's own (nothing compiled)."""
-
-        traced = False
-
-        def pose_grad(self, resolved):  # noqa: ANN001, ANN202
-            with torch.enable_grad():
-                x = resolved[0].detach().requires_grad_(True)
-                e = net.readout(net.pooled(x, *resolved[1:]))
-                (g,) = torch.autograd.grad(e.sum(), x)
-            return e.detach(), g.detach()
-
     monkeypatch.setattr(compiled, "in_parallel", in_parallel)
-    stand_in = Eager()
+    return counts
+
+
+def _eight_pose_sets() -> tuple[ss.models.EnergyNet, ss.models.SceneTensors]:
+    torch.manual_seed(0)
+    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
+    return model.net, model.tensors(ss.scenarios.get("dining").generate(2, 0)).repeat(4)
+
+
+def test_the_compiled_pose_gradients_pieces_run_side_by_side_once_traced(side_by_side):
+    from scenescore.models import compiled
+
+    net, st = _eight_pose_sets()
+    stand_in = EagerStandIn(net)
     for _ in range(2):
         x = st.poses.clone().requires_grad_(True)
         e = compiled.CompiledPoseGrad.apply(net, stand_in, 2, x, st.feats, st.sizes, st.mask, None, st.round)
@@ -150,33 +167,15 @@ def test_the_compiled_pose_gradients_pieces_run_side_by_side_once_traced(monkeyp
     assert side_by_side == [3, 4] and stand_in.traced
 
 
-def test_the_compiled_losss_pieces_give_the_whole_batchs_energies_and_weight_gradients(monkeypatch):
+def test_the_compiled_losss_pieces_give_the_whole_batchs_energies_and_weight_gradients(side_by_side):
     from scenescore.models import compiled
 
-    torch.manual_seed(0)
-    model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1)
-    net = model.net
-    st = model.tensors(ss.scenarios.get("dining").generate(2, 0)).repeat(4)  # 8 pose sets
+    net, st = _eight_pose_sets()
     args = (st.poses, st.feats, st.sizes, st.mask, None, st.round)
-    side_by_side: list[int] = []
-
-    def in_parallel(work, parallel=True):  # noqa: ANN001, ANN202
-        side_by_side.append(len(work))
-        return [w() for w in work]
-
-    class Eager:
-        """The compiled pass stood in for by the network's own (nothing compiled)."""
-
-        energy_traced = False
-
-        def energy(self, resolved):  # noqa: ANN001, ANN202
-            return net.readout(net.pooled(*resolved))
-
-    monkeypatch.setattr(compiled, "in_parallel", in_parallel)
     weights = list(net.parameters())
     whole = net(*args)
     want = torch.autograd.grad((whole * torch.arange(8.0)).sum(), weights)
-    stand_in = Eager()
+    stand_in = EagerStandIn(net)
     for _ in range(2):
         e = compiled.CompiledEnergy.apply(net, stand_in, 3, *args, *weights)
         got = torch.autograd.grad((e * torch.arange(8.0)).sum(), weights)
