@@ -16,6 +16,7 @@ from ..models.casadi import energy_mx
 from ..models.explain import Explanation, explain
 from ..models.flags import assess
 from ..models.model import with_walls
+from ..models.moving import MovingOne
 from ..models.network import round_flags
 from ..models.rivals import rivals
 from ..models.trust import CAVEAT, Assessment, outside_data
@@ -69,6 +70,7 @@ class LearnedEnergy(Cost, Guide):
         self.objects = None if objects is None else list(objects)
         self.relations = relations
         self._fn: Callable[[Tensor], Tensor] | None = None
+        self._mover: MovingOne | None = None  # where one object moves (set when bound)
         self._idx: Tensor | None = None
         self.visible_scene: Scene | None = None
 
@@ -97,7 +99,11 @@ class LearnedEnergy(Cost, Guide):
             self._idx = torch.tensor(idx, dtype=torch.long, device=self.binding.device)
         self.visible_scene = scene  # the scene the energy is conditioned on
         with torch.no_grad():
-            self._fn = self.model.energy_fn(scene)
+            st = self.model.tensors([scene])
+            self._fn = self.model.energy_fn_for(st)
+        moving = [i for i, m in enumerate(self.binding.movable) if m]
+        one = self.objects is None and len(moving) == 1
+        self._mover = self.model.moving_one(st, moving[0]) if one else None
 
     @classmethod
     def stack(cls, terms: Sequence[Cost], sizes: Sequence[int]) -> Callable[[Tensor], Tensor]:
@@ -120,7 +126,23 @@ class LearnedEnergy(Cost, Guide):
             e = model.net(x, None, None, st.mask, nodes=nodes, round=rnd, weight_grads=False)
             return e.to(poses.dtype)
 
-        return fn
+        movers = [t._mover for t in es]
+        if any(m is None for m in movers):
+            return fn
+        widths = [len(t.binding.scene) for t in es]
+
+        def moving(poses: Tensor) -> Tensor:
+            """Each problem's one moving object through its own evaluator (all or none of them)."""
+            x, parts, a = poses.to(model.dtype), [], 0
+            for m, size, n in zip(movers, sizes, widths):
+                e = m(x[a : a + size, :n])  # type: ignore[misc]
+                if e is None:
+                    return fn(poses)
+                parts.append(e)
+                a += size
+            return torch.cat(parts).to(poses.dtype)
+
+        return moving
 
     def _moving(self) -> list[str]:
         """The names of the movable objects that the energy sees."""
@@ -236,7 +258,9 @@ class LearnedEnergy(Cost, Guide):
             self.binding  # noqa: B018 - raises
         if self._idx is not None:
             poses = poses[:, self._idx]
-        return self._fn(poses.to(dtype)).to(poses.dtype)  # type: ignore[misc]
+        x = poses.to(dtype)
+        e = None if self._mover is None else self._mover(x)  # None where others than its object move
+        return (self._fn(x) if e is None else e).to(poses.dtype)  # type: ignore[misc]
 
 
 def _energy_casadi(term: LearnedEnergy, weight: float, nlp: SymbolicProblem) -> None:

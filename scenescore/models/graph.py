@@ -11,7 +11,16 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-__all__ = ["WALLS", "wall_nodes", "senders", "edge_features", "fade", "footprint_gaps", "neighbour_graph"]
+__all__ = [
+    "WALLS",
+    "wall_nodes",
+    "senders",
+    "receiving",
+    "edge_features",
+    "fade",
+    "footprint_gaps",
+    "neighbour_graph",
+]
 
 WALLS = 4  # the bounds' sides that a model with walls appends after each scene's objects
 
@@ -33,6 +42,12 @@ def senders(t: Tensor, index: Tensor | None) -> Tensor:
     return t.reshape(b * n, *t.shape[2:]).index_select(0, flat).reshape(*index.shape, *t.shape[2:])
 
 
+def receiving(t: Tensor, receivers: Tensor | None) -> Tensor:
+    """Per-node ``t (B, N, ...)`` at the receiving end of the edges: ``t`` itself, or, for the edges into
+    the nodes ``receivers (B, M)`` alone, those nodes' rows ``(B, M, ...)``."""
+    return t if receivers is None else senders(t, receivers[..., None])[:, :, 0]
+
+
 def edge_features(
     poses: Tensor,
     length_scale: float,
@@ -42,11 +57,13 @@ def edge_features(
     wall_range: float | None = None,
     wall_lines: bool = False,
     index: Tensor | None = None,
+    receivers: Tensor | None = None,
 ) -> Tensor:
     """``e[b, i, j]``: pose of ``i`` in the frame of ``j``, ``(B, N, N, 4)``; positions in length scales,
     saturating beyond ``edge_range`` of them (the network never extrapolates to offsets far beyond the
     data's: they all look alike, as far). With ``index (B, N, S)`` (a local graph) only the edges into
-    each ``i`` from ``index[b, i, s]``: ``(B, N, S, 4)``.
+    each ``i`` from ``index[b, i, s]``: ``(B, N, S, 4)``; with ``receivers (B, M)`` as well, only the edges
+    into those nodes, ``index (B, M, S)`` their senders: ``(B, M, S, 4)``.
 
     ``round (B, N)`` marks objects without a heading (round disks): seen from a round ``j`` the offset
     is ``(|u|, 0)``, the distance alone, and an edge touching one has relative heading ``(0, 0)``; the
@@ -59,21 +76,25 @@ def edge_features(
     ``u / sqrt(1 + (u / R)^2)``."""
     p = poses[..., :2]  # (B, N, 2)
     th = poses[..., 2]  # (B, N)
-    d = p[:, :, None, :] - senders(p, index)  # (B, N_i, N_j or S, 2): p_i - p_j
+    th_i = receiving(th, receivers)[:, :, None]  # (B, N_i, 1)
+    d = receiving(p, receivers)[:, :, None, :] - senders(p, index)  # (B, N_i, N_j or S, 2): p_i - p_j
     c, s = senders(torch.cos(th), index), senders(torch.sin(th), index)  # theta_j
     rx = c * d[..., 0] + s * d[..., 1]
     ry = -s * d[..., 0] + c * d[..., 1]
-    dth = th[:, :, None] - senders(th, index)
+    dth = th_i - senders(th, index)
     ux, uy = rx / length_scale, ry / length_scale
     cd, sd = torch.cos(dth), torch.sin(dth)
     if walls is not None and wall_lines:
-        wi, wj = walls[:, :, None], senders(walls, index)  # (B, N_i, 1), (B, 1 or N_i, N_j or S)
+        wi, wj = (
+            receiving(walls, receivers)[:, :, None],
+            senders(walls, index),
+        )  # (B, N_i, 1), (B, 1 or N_i, N_j or S)
         # [b, i, j]: how far j stands from i's line, were i a wall: j's y in the frame of i (the
         # transposed edge of a dense graph; worked out along a local graph's edges)
         if index is None:
             h = uy.transpose(1, 2)
         else:
-            c_i, s_i = torch.cos(th)[:, :, None], torch.sin(th)[:, :, None]
+            c_i, s_i = torch.cos(th_i), torch.sin(th_i)
             h = (s_i * d[..., 0] - c_i * d[..., 1]) / length_scale
         ux, uy = (
             torch.where(wj, torch.zeros_like(ux), torch.where(wi, sd * h, ux)),
@@ -83,10 +104,10 @@ def edge_features(
         rj = senders(round, index)  # (B, 1 or N_i, N_j or S)
         dist = torch.sqrt(ux * ux + uy * uy + 1e-12)  # the constant keeps the gradient finite at i == j
         ux, uy = torch.where(rj, dist, ux), uy.masked_fill(rj, 0.0)
-        either = rj | round[:, :, None]
+        either = rj | receiving(round, receivers)[:, :, None]
         cd, sd = cd.masked_fill(either, 0.0), sd.masked_fill(either, 0.0)
     if walls is not None and wall_range is not None:
-        touch = walls[:, :, None] | senders(walls, index)  # (B, N_i, N_j or S)
+        touch = receiving(walls, receivers)[:, :, None] | senders(walls, index)  # (B, N_i, N_j or S)
         ux = torch.where(touch, ux * torch.rsqrt(1 + (ux / wall_range) ** 2), ux)
         uy = torch.where(touch, uy * torch.rsqrt(1 + (uy / wall_range) ** 2), uy)
     if edge_range is not None:
@@ -102,13 +123,16 @@ def fade(gap: Tensor, radius: float) -> Tensor:
     return (1 - x * x) ** 2
 
 
-def footprint_gaps(pos: Tensor, reach: Tensor, index: Tensor | None = None) -> Tensor:
+def footprint_gaps(
+    pos: Tensor, reach: Tensor, index: Tensor | None = None, receivers: Tensor | None = None
+) -> Tensor:
     """The gap between objects' circles: centre distance less both ``reach`` (half the longer side),
     at least zero; ``pos (B, N, 2)``, ``reach (B, N)`` -> ``(B, N, N)``, or ``(B, N, S)`` along the local
-    graph ``index``. A pair at one spot (an object and itself) gets a finite gradient."""
-    d = pos[:, :, None, :] - senders(pos, index)
+    graph ``index`` (``(B, M, S)`` into the nodes ``receivers (B, M)``, as in :func:`edge_features`). A
+    pair at one spot (an object and itself) gets a finite gradient."""
+    d = receiving(pos, receivers)[:, :, None, :] - senders(pos, index)
     dist = torch.sqrt((d * d).sum(-1) + 1e-12)
-    return (dist - reach[:, :, None] - senders(reach, index)).clamp(min=0.0)
+    return (dist - receiving(reach, receivers)[:, :, None] - senders(reach, index)).clamp(min=0.0)
 
 
 def neighbour_graph(

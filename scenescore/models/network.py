@@ -212,16 +212,27 @@ class MessageLayer(nn.Module):
     def forward(self, v: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None = None) -> Tensor:
         """``pair_mask``: each edge's weight, ``(B, N, N)`` (dense) or ``(B, N, S)`` for the local graph
         ``index (B, N, S)`` (see :func:`senders`)."""
+        return self.received(v, self.w_j(v), e, pair_mask, index)
+
+    def received(
+        self, v_i: Tensor, sent: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None
+    ) -> Tensor:
+        """The new states of the receiving nodes ``v_i (B, M, D)`` from the senders' ``w_j`` of their
+        states, ``sent (B, N, H)``, along the edges ``e``, ``pair_mask`` and ``index`` into them (``(B, M,
+        N or S, ...)``): :meth:`forward` with ``v_i = v``, or a few nodes' alone
+        (:class:`~scenescore.models.moving.MovingOne`)."""
         # f's last linear is moved out of the sum over j (it is linear): sum_j p_ij (W a_ij + b) =
         # W (sum_j p_ij a_ij) + b deg_i, so the (B, N, N, H) tensors are the first layer's and its
         # activation only
         summed = self._summed if torch.is_grad_enabled() else self._summed_in_place
-        return self.act(summed(v, e, pair_mask, index))
+        return self.act(summed(v_i, sent, e, pair_mask, index))
 
-    def _summed(self, v: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None) -> Tensor:
-        """:meth:`forward`'s sum before its activation, each operation writing a new tensor (autograd
+    def _summed(
+        self, v_i: Tensor, sent: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None
+    ) -> Tensor:
+        """:meth:`received`'s sum before its activation, each operation writing a new tensor (autograd
         keeps them for the backward pass)."""
-        m = self.w_i(v)[:, :, None, :] + senders(self.w_j(v), index)  # (B, N, N or S, H)
+        m = self.w_i(v_i)[:, :, None, :] + senders(sent, index)  # (B, M, N or S, H)
         if self.w_e is not None and e is not None:
             m = m + self.w_e(e)
         if self.out is not None:
@@ -229,13 +240,13 @@ class MessageLayer(nn.Module):
         return self._out((m * pair_mask[..., None]).sum(dim=2), pair_mask)  # sum_j p_ij m_ij
 
     def _summed_in_place(
-        self, v: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None
+        self, v_i: Tensor, sent: Tensor, e: Tensor | None, pair_mask: Tensor, index: Tensor | None
     ) -> Tensor:
         """:meth:`_summed` without a gradient: the same operations in the same order (the same numbers),
-        each written into the one ``(B, N, N or S, H)`` tensor, which saves writing and reading several
+        each written into the one ``(B, M, N or S, H)`` tensor, which saves writing and reading several
         (``benchmarks/bench_network.py`` times both). With a gradient the tensors stay apart, which is
         the faster there."""
-        w_i, m = self.w_i(v)[:, :, None, :], senders(self.w_j(v), index)
+        w_i, m = self.w_i(v_i)[:, :, None, :], senders(sent, index)
         m = w_i + m if index is None else m.add_(w_i)  # a dense graph's senders are a broadcast view
         if self.w_e is not None and e is not None:
             m.add_(self.w_e(e))
@@ -313,6 +324,19 @@ class EnergyNet(nn.Module):
             roomy=grad and self.cfg.local,
         )
 
+    def loss_rows(self, n: int, itemsize: int = 4) -> int:
+        """Pose sets of ``n`` objects that training's compiled loss differentiates in one call, graphs kept
+        (its passes merged, :func:`scenescore.learn.loop._pass_energies`): as many as an eighth of the
+        memory budget holds. Eager training keeps every pass's graph until the loss's backward pass too;
+        one chunk's :meth:`chunk_rows` would send the merged passes to the chunked path, which runs their
+        forward pass twice."""
+        return chunk_rows(
+            self.row_bytes(n, True, itemsize),
+            f"energy network: one pose set of {n} objects ({self.cfg.describe()}, with its gradient)",
+            "the number of objects in the scene",
+            roomy=True,
+        )
+
     def node_embedding(self, feats: Tensor, sizes: Tensor) -> Tensor:
         """Pose-independent node features ``(B, N, embed_dim + 2)``."""
         return torch.cat([self.embed(feats), sizes / self.cfg.length_scale], dim=-1)
@@ -355,7 +379,7 @@ class EnergyNet(nn.Module):
         if c is not None and grad:  # training's compiled passes (compiled.compiling)
             if not weight_grads and poses.requires_grad:  # a chain's pose gradient
                 return CompiledPoseGrad.apply(self, c, piece, *args)
-            if weight_grads and b <= rows:  # the loss's energies, in a piece for each core where it pays
+            if weight_grads and b <= self.loss_rows(n, poses.element_size()):  # the loss's merged passes
                 if shares > 1 and not any(t is not None and t.requires_grad for t in args):
                     return CompiledEnergy.apply(self, c, -(-b // shares), *args, *self.parameters())
                 return c.energy(self.resolve(*args))
@@ -474,14 +498,27 @@ class EnergyNet(nn.Module):
         return self.cfg.walls and (self.cfg.wall_range is not None or self.cfg.wall_lines)
 
     def edges(
-        self, poses: Tensor, round: Tensor | None, walls: Tensor | None = None, index: Tensor | None = None
+        self,
+        poses: Tensor,
+        round: Tensor | None,
+        walls: Tensor | None = None,
+        index: Tensor | None = None,
+        receivers: Tensor | None = None,
     ) -> Tensor:
         """What the message layers read of each edge: :func:`edge_features`, through the edge encoder
         when the network has one; ``(B, N, N or S, 4 or edge_encoder)``. ``walls (B, N)``: which nodes
         are walls (see :func:`wall_nodes`), for a network that :attr:`reads_walls`; ``index``: a local
-        graph (:func:`neighbour_graph`)."""
+        graph (:func:`neighbour_graph`), the edges into ``receivers`` alone where given."""
         cfg = self.cfg
         e = edge_features(
-            poses, cfg.length_scale, cfg.edge_range, round, walls, cfg.wall_range, cfg.wall_lines, index
+            poses,
+            cfg.length_scale,
+            cfg.edge_range,
+            round,
+            walls,
+            cfg.wall_range,
+            cfg.wall_lines,
+            index,
+            receivers,
         )
         return e if self.edge_enc is None else self.edge_enc(e)
