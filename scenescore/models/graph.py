@@ -76,11 +76,13 @@ def edge_features(
     ``u / sqrt(1 + (u / R)^2)``."""
     p = poses[..., :2]  # (B, N, 2)
     th = poses[..., 2]  # (B, N)
-    th_i = receiving(th, receivers)[:, :, None]  # (B, N_i, 1)
     d = receiving(p, receivers)[:, :, None, :] - senders(p, index)  # (B, N_i, N_j or S, 2): p_i - p_j
     c, s = senders(torch.cos(th), index), senders(torch.sin(th), index)  # theta_j
     rx = c * d[..., 0] + s * d[..., 1]
     ry = -s * d[..., 0] + c * d[..., 1]
+    # made here, after the offsets: autograd sums the poses' gradient in the order its operations were
+    # made, and a seed's trained model depends on that order
+    th_i = receiving(th, receivers)[:, :, None]  # (B, N_i, 1)
     dth = th_i - senders(th, index)
     ux, uy = rx / length_scale, ry / length_scale
     cd, sd = torch.cos(dth), torch.sin(dth)

@@ -52,7 +52,7 @@ class MovingOne:
         self.layers = [cast(MessageLayer, layer) for layer in net.layers]
         self.net, self.o, self.poses = net, o, poses
         self.nodes, self.rnd = nodes, rnd
-        self.reach = 0.5 * nodes[:, -2:].amax(dim=-1)  # as EnergyNet.pooled reads it, in length scales
+        self.reach = net.reach(nodes)  # (N,)
         n = poses.shape[0]
         self.mask = mask
         self.base_mask = mask & (torch.arange(n, device=poses.device) != o)  # the scene without o
@@ -66,12 +66,12 @@ class MovingOne:
             assert index is not None  # more objects than a list holds: see of
             for layer in self.layers:
                 states.append(layer(states[-1], e, pair, index))
-            terms = net.head[1](net.head[0](states[-1]))[0]  # (N, H): each node's term
+            terms = net.node_terms(states[-1])[0]  # (N, H): each node's term
+            # what each layer's senders send, w_j of their states
+            self.sent = [layer.w_j(s[0]) for layer, s in zip(self.layers, states)]
         self.index = index[0]  # (N, S): the base's lists, nearest first
         self.farthest = footprint_gaps(pos, self.reach[None], index)[0, :, -1]  # (N,)
         self.states = [s[0] for s in states]  # (N, H) at each layer
-        with torch.no_grad():  # what each layer's senders send, w_j of their states
-            self.sent = [layer.w_j(s) for layer, s in zip(self.layers, self.states)]
         self.terms = terms * self.base_mask[:, None].to(terms.dtype)  # o's and padding's count none
         self.pooled = self.terms.sum(dim=0)  # (H,)
 
@@ -146,7 +146,7 @@ class MovingOne:
             start = m
         kept = valid.to(pos.dtype)[..., None]
         old = self.terms[safe] * kept
-        pooled = self.pooled + (net.head[1](net.head[0](new)) * kept - old).sum(dim=1)
+        pooled = self.pooled + (net.node_terms(new) * kept - old).sum(dim=1)
         return net.readout(pooled)
 
     def _graph(self, pos: Tensor, reach: Tensor) -> tuple[Tensor, Tensor, Tensor, list[int]]:

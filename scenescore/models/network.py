@@ -312,16 +312,17 @@ class EnergyNet(nn.Module):
         """:meth:`EnergyConfig.reads` of this network's graph."""
         return self.cfg.reads(n)
 
-    def chunk_rows(self, n: int, grad: bool, itemsize: int = 4) -> int:
+    def chunk_rows(self, n: int, grad: bool, itemsize: int = 4, roomy: bool | None = None) -> int:
         """Pose sets of ``n`` objects evaluated at once (see :func:`scenescore.runtime.memory.chunk_rows`). With a
         gradient a local graph's batch is cut only as the memory budget needs (its rows grow with ``n``,
-        not ``n^2``, and cutting a training batch into chunks runs its forward pass twice)."""
+        not ``n^2``, and cutting a training batch into chunks runs its forward pass twice); ``roomy``
+        overrides that choice."""
         return chunk_rows(
             self.row_bytes(n, grad, itemsize),
             f"energy network: one pose set of {n} objects ({self.cfg.describe()}"
             f"{', with its gradient' if grad else ''})",
             "the number of objects in the scene",
-            roomy=grad and self.cfg.local,
+            roomy=grad and self.cfg.local if roomy is None else roomy,
         )
 
     def loss_rows(self, n: int, itemsize: int = 4) -> int:
@@ -330,12 +331,14 @@ class EnergyNet(nn.Module):
         memory budget holds. Eager training keeps every pass's graph until the loss's backward pass too;
         one chunk's :meth:`chunk_rows` would send the merged passes to the chunked path, which runs their
         forward pass twice."""
-        return chunk_rows(
-            self.row_bytes(n, True, itemsize),
-            f"energy network: one pose set of {n} objects ({self.cfg.describe()}, with its gradient)",
-            "the number of objects in the scene",
-            roomy=True,
-        )
+        return self.chunk_rows(n, True, itemsize, roomy=True)
+
+    @staticmethod
+    def reach(nodes: Tensor) -> Tensor:
+        """Each object's half longer side in length scales, ``(..., N)``, from its
+        :meth:`node_embedding` ``(..., N, D)`` (whose last two columns are its sizes): the circle a local
+        graph's gaps are measured between."""
+        return 0.5 * nodes[..., -2:].amax(dim=-1)
 
     def node_embedding(self, feats: Tensor, sizes: Tensor) -> Tensor:
         """Pose-independent node features ``(B, N, embed_dim + 2)``."""
@@ -459,7 +462,7 @@ class EnergyNet(nn.Module):
         index = None
         if self.cfg.local:
             assert self.cfg.neighbours is not None and self.cfg.radius is not None
-            reach = 0.5 * v[..., -2:].amax(dim=-1)  # half the longer side (length scales): see node_embedding
+            reach = self.reach(v)
             pos = poses[..., :2] / self.cfg.length_scale
             index, pair = neighbour_graph(
                 pos, reach, mask.expand(b, n), walls, self.cfg.neighbours, self.cfg.radius
@@ -481,9 +484,14 @@ class EnergyNet(nn.Module):
                 tap(e, pair, index)
         for layer in self.layers:
             v = layer(v, e, pair, index)
-        if self.cfg.local:  # each object's own term up to the head's last linear, summed
-            v = self.head[1](self.head[0](v))
+        if self.cfg.local:  # each object's own term, summed
+            v = self.node_terms(v)
         return (v * maskf[..., None]).sum(dim=1)  # global add pooling
+
+    def node_terms(self, v: Tensor) -> Tensor:
+        """A local network's per-object terms up to the head's last linear, ``act(W1 v_i + b1)``, from the
+        last layer's states ``v (..., N, H)`` (their sum is what :meth:`readout` reads)."""
+        return self.head[1](self.head[0](v))
 
     def readout(self, pooled: Tensor) -> Tensor:
         """The energy per scene from :meth:`_pooled`'s sum: the head (dense), or the head's last linear
