@@ -31,6 +31,7 @@ from torch import Tensor
 from ..geometry.footprints import Footprints
 from ..runtime import resolve_device
 from ..scene.scene import Scene, SceneError
+from . import finite
 
 __all__ = [
     "CostError",
@@ -378,7 +379,7 @@ class Sum(Cost):
         total = poses.new_zeros(poses.shape[0])
         for w, c in self.items:
             v = c(poses)
-            _finite(v, c.name, poses)
+            check_values(v, c.name, poses.shape[0])
             total = total + w * v
         return total
 
@@ -388,7 +389,7 @@ class Sum(Cost):
         out = {}
         for w, c in self.items:
             v = c(poses)
-            _finite(v, c.name, poses)
+            check_values(v, c.name, poses.shape[0])
             out[c.name] = TermValue(v, w, w * v, c.violation(poses) if c.is_constraint else None)
         return out
 
@@ -411,13 +412,16 @@ class Sum(Cost):
         return " + ".join(f"{w:g} * {c!r}" for w, c in self.items)
 
 
-def _finite(v: Tensor, name: str, poses: Tensor) -> None:
-    if v.shape != (poses.shape[0],):
-        raise CostError(
-            f"cost term {name!r}: expected values of shape ({poses.shape[0]},), got {tuple(v.shape)}"
-        )
-    if not torch.isfinite(v).all():
-        bad = int((~torch.isfinite(v)).nonzero()[0, 0])
+def check_values(values: Tensor, name: str, rows: int) -> None:
+    """A term's values ``(rows,)``: the shape at once; finiteness at once or, inside
+    :func:`~scenescore.costs.finite.watching` (a chain's steps), recorded for the chain's end."""
+    if values.shape != (rows,):
+        raise CostError(f"cost term {name!r}: expected values of shape ({rows},), got {tuple(values.shape)}")
+    watch = finite.current()
+    if watch is not None:
+        watch.record(name, values)
+    elif not torch.isfinite(values).all():
+        bad = int((~torch.isfinite(values)).nonzero()[0, 0])
         raise CostError(f"cost term {name!r} is not finite (NaN or inf) at batch row {bad}")
 
 
@@ -431,12 +435,17 @@ def stack_sums(sums: Sequence[Sum], sizes: Sequence[int]) -> Callable[[Tensor], 
     )
     if not same:
         return Cost.stack(sums, sizes)
-    parts = [(w, type(c).stack([s.items[k][1] for s in sums], sizes)) for k, (w, c) in enumerate(first.items)]
+    parts = [
+        (w, c.name, type(c).stack([s.items[k][1] for s in sums], sizes))
+        for k, (w, c) in enumerate(first.items)
+    ]
 
     def fn(poses: Tensor) -> Tensor:
         total = poses.new_zeros(poses.shape[0])
-        for w, f in parts:
-            total = total + w * f(poses)
+        for w, name, f in parts:
+            v = f(poses)
+            check_values(v, name, poses.shape[0])
+            total = total + w * v
         return total
 
     return fn

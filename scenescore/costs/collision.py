@@ -87,6 +87,7 @@ class HingeCollision(ConstraintCost):
         fp = b.footprints
         circle = fp.verts.norm(dim=-1).amax(-1) + fp.radius  # (N,) bounding circle about the origin
         self._reach = circle[self._pi] + circle[self._pj] + self.margin + CULL_CUSHION  # (P,)
+        self._reach_max = float(self._reach.max()) if pairs else 0.0
         # the exact check's copies, on the CPU: pair indices and squared reach
         self._pi_np, self._pj_np = self._pi.cpu().numpy(), self._pj.cpu().numpy()
         self._reach2_np = (self._reach * self._reach).cpu().numpy()
@@ -100,9 +101,9 @@ class HingeCollision(ConstraintCost):
         signed distance computed from these coordinates (float32 included)."""
         xy = poses[..., :2].detach()
         d = xy[:, self._pi] - xy[:, self._pj]  # (B, P, 2)
-        scale = float(xy.abs().amax()) if xy.numel() else 0.0
+        scale = xy.abs().amax() if xy.numel() else xy.new_zeros(())  # kept on the device: not read
         eps = torch.finfo(poses.dtype).eps
-        reach = self._reach.to(poses.device, poses.dtype) + 64 * eps * (scale + float(self._reach.max()))
+        reach = self._reach.to(poses.device, poses.dtype) + 64 * eps * (scale + self._reach_max)
         return d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1], reach
 
     def _near(self, poses: Tensor) -> Tensor:
@@ -143,8 +144,15 @@ class HingeCollision(ConstraintCost):
         return out.view(b, p)
 
     def _screens(self, poses: Tensor) -> bool:
-        """Whether to screen the pairs of ``poses`` by their bounding circles (else: compute them all)."""
-        return self._path == "fast" and bool(self._pairs) and poses.shape[0] * len(self._pairs) >= SCREEN_ROWS
+        """Whether to screen the pairs of ``poses`` by their bounding circles (else: compute them all, the
+        same numbers). Not on a GPU: which pairs pass is read back from the device, a wait at every step
+        of a chain, where computing every pair keeps the device busy instead."""
+        return (
+            self._path == "fast"
+            and bool(self._pairs)
+            and poses.shape[0] * len(self._pairs) >= SCREEN_ROWS
+            and poses.device.type == "cpu"
+        )
 
     def evaluate(self, poses: Tensor) -> Tensor:
         if not self._screens(poses):

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from ..costs.base import CostError
+from ..costs.finite import FiniteWatch, watching
 from ..errors import check_number
 from ..runtime import draw
 from ..runtime import generator as make_generator
@@ -138,9 +140,13 @@ def _grad(energy_fn: Callable[[Tensor], Tensor], x: Tensor) -> Tensor:
     return g
 
 
-def _finite(ok: Tensor) -> None:
-    """Raise unless every gradient a chain took was finite (``ok``: one flag, and-ed over its steps)."""
-    if not bool(ok):
+def _finite(ok: Tensor, watch: FiniteWatch) -> None:
+    """Raise unless every gradient a chain took (``ok``: one flag, and-ed over its steps) and every cost
+    term's value (``watch``) was finite: one read; a term that was not is named."""
+    if not bool(ok & watch.all_finite(ok.device)):
+        bad = watch.first_bad()
+        if bad is not None:
+            raise CostError(f"cost term {bad!r} is not finite (NaN or inf) at some particle of the chain")
         raise FloatingPointError(
             "Langevin: the energy's gradient is not finite (NaN or inf) at some particle"
         )
@@ -238,25 +244,26 @@ def chain(
     ok = torch.ones((), dtype=torch.bool, device=x.device)
     total = cfg.steps if run_steps is None else run_steps
     marks = {round(total * (k + 1) / (cfg.resample + 1)) for k in range(cfg.resample)}
-    for t in range(total):
-        if t in marks:
-            with torch.no_grad():
-                x = resample(x, energy_fn(x), cfg.temperature, groups, generator)
-        if age is None:
-            lam: float | Tensor = cfg.step_size(t)
-        else:  # each chain at its own place in the schedule
-            lam = torch.as_tensor(cfg.step_size((age + t).to(x.dtype))).reshape(-1, 1, 1)
-        x, fine = _step(energy_fn, x, frame, cfg, lam, cfg.noise, generator)
-        ok = ok & fine
-    if cfg.heading_sweep:
-        _finite(ok)  # the sweep reads its energies back
-        x = sweep_headings(energy_fn, x, frame.move[..., 0], cfg.heading_sweep)
-        if frame.project is not None:
-            x = frame.project(x)
-    for _ in range(cfg.final_descent):
-        x, fine = _step(energy_fn, x, frame, cfg, cfg.step_final, 0.0, generator)
-        ok = ok & fine
-    _finite(ok)
+    with watching() as watch:  # the cost terms' values are checked with the gradients, at the end
+        for t in range(total):
+            if t in marks:
+                with torch.no_grad():
+                    x = resample(x, energy_fn(x), cfg.temperature, groups, generator)
+            if age is None:
+                lam: float | Tensor = cfg.step_size(t)
+            else:  # each chain at its own place in the schedule
+                lam = torch.as_tensor(cfg.step_size((age + t).to(x.dtype))).reshape(-1, 1, 1)
+            x, fine = _step(energy_fn, x, frame, cfg, lam, cfg.noise, generator)
+            ok = ok & fine
+        if cfg.heading_sweep:
+            _finite(ok, watch)  # the sweep reads its energies back
+            x = sweep_headings(energy_fn, x, frame.move[..., 0], cfg.heading_sweep)
+            if frame.project is not None:
+                x = frame.project(x)
+        for _ in range(cfg.final_descent):
+            x, fine = _step(energy_fn, x, frame, cfg, cfg.step_final, 0.0, generator)
+            ok = ok & fine
+        _finite(ok, watch)
     return x.detach()
 
 
@@ -283,9 +290,10 @@ def sweep_headings(energy_fn: Callable[[Tensor], Tensor], x: Tensor, movable: Te
     b, n, _ = x.shape
     angles = torch.linspace(-math.pi, math.pi, k + 1, dtype=x.dtype, device=x.device)[:-1]
     rows = torch.arange(b, device=x.device)
+    moving = movable.any(dim=0).tolist()  # one read, not one per object
     with torch.no_grad():
         for i in range(n):
-            if not bool(movable[:, i].any()):
+            if not moving[i]:
                 continue
             cand = x[:, None].repeat(1, k + 1, 1, 1)  # (B, k + 1, N, 3); candidate 0 keeps the heading
             cand[:, 1:, i, 2] = angles

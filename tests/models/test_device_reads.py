@@ -1,6 +1,6 @@
 """A chain's steps never read a tensor's values back (on a GPU each read waits for the device to finish
 its queue): the round objects and the walls are settled once per batch of scenes, and a chain checks
-its gradients once, at its end."""
+its gradients and its cost terms' values once, at its end."""
 
 from __future__ import annotations
 
@@ -12,8 +12,12 @@ import torch
 from torch.utils._python_dispatch import TorchDispatchMode
 
 import scenescore as ss
+from scenescore.costs import CostFn, HingeCollision, LearnedEnergy
+from scenescore.costs.base import CostError, stack_sums
 from scenescore.learn.size_groups import SizeGroups
 from scenescore.models.network import round_flags
+from scenescore.planning.placement import placement_problem
+from scenescore.problem.problem import Problem
 from scenescore.solvers.kernel import PLACEMENT, Limits, chain
 
 
@@ -37,8 +41,10 @@ def _model(**config: object) -> ss.models.ScoreModel:
     )
 
 
-def _reads_of_a_chain(energy: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor, steps: int) -> int:
-    limits = Limits(
+def _reads_of_a_chain(
+    energy: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor, steps: int, limits: Limits | None = None
+) -> int:
+    limits = limits or Limits(
         torch.ones(x.shape[:2], dtype=torch.bool), torch.tensor([-1.0, -1.0]), torch.tensor([1.0, 1.0])
     )
     cfg = replace(PLACEMENT, steps=steps, heading_sweep=0, final_descent=0, resample=0)
@@ -73,3 +79,29 @@ def test_a_batch_without_round_objects_takes_the_plain_path_with_the_same_number
     # given, an all-false round tensor takes the round path, whose numbers are the plain path's
     assert torch.equal(model.net(*args, round=st.round), model.net(*args, round=None))
     assert torch.equal(model.energy(st.poses, st), model.net(*args, round=None))
+
+
+def _placement(model: ss.models.ScoreModel, seed: int) -> Problem:
+    scene = ss.scenarios.get("zoo-jars").generate(1, seed)[0]
+    for o in scene.objects[1:3]:  # two to place: the whole network (one object alone takes MovingOne's
+        o.pose = None  # CPU-only path, which reads its pose sets' sizes)
+    return placement_problem(model, scene)
+
+
+def test_a_placements_chain_reads_the_device_once_and_names_a_cost_term_that_is_not_finite():
+    model = _model(neighbours=3, radius=4.0)
+    problem = _placement(model, 0)
+    assert [type(c) for _, c in problem.cost.items] == [LearnedEnergy, HingeCollision]
+    x = problem.initial(32, torch.Generator().manual_seed(0))  # enough rows that the hinge screens pairs
+    limits = Limits(torch.as_tensor(problem.movable_mask), problem.lo, problem.hi)
+    twice = stack_sums([problem.cost, _placement(model, 0).cost], [32, 32])  # two problems in one chain
+    for steps in (2, 6):
+        assert _reads_of_a_chain(problem.cost, x, steps, limits) == 1
+        assert _reads_of_a_chain(twice, x.repeat(2, 1, 1), steps, limits) == 1
+    bad = (problem.cost + CostFn(lambda p: p[..., 0].sum(-1) * float("nan"), name="bad")).bind(
+        problem.scene, problem.scene.unknown
+    )
+    with pytest.raises(CostError, match="'bad' is not finite"):  # called alone: at once, its row named
+        bad(x)
+    with pytest.raises(CostError, match="'bad' is not finite .* of the chain"):  # in a chain: at its end
+        _reads_of_a_chain(bad, x, 3, limits)
