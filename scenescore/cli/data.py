@@ -130,9 +130,8 @@ def _add_train_run(p: argparse.ArgumentParser) -> None:
         choices=["auto", "on", "off"],
         default=None,
         help="run the network's training passes compiled (torch.compile, kept in the user's cache folder): "
-        "auto does on a GPU, or a CPU of one core, where the training is large enough that the first "
-        "run's compile pays for itself; on more cores eager pieces run side by side instead (default "
-        "auto; off: eager)",
+        "auto does where the training is large enough that the first run's compile pays for itself "
+        "and a compiler is installed (default auto; off: eager)",
     )
     p.add_argument(
         "--init",

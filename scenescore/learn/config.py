@@ -14,7 +14,6 @@ from ..encoders import Encoder, FootprintEncoder
 from ..errors import ConfigError, check_number
 from ..models.ensemble import MAX_MEMBERS
 from ..models.network import WALLS, Activation, EnergyConfig
-from ..runtime import usable_cores
 from ..scene.scene import Scene
 from ..solvers.kernel import TRAINING, LangevinConfig
 from .data import data_scale, local_radius, stands_against_walls
@@ -159,11 +158,9 @@ class TrainConfig:
     snapshot_cycle: float = 0.25
     # the network's passes compiled while it trains (torch.compile; scenescore.models.compiled): "on",
     # "off" (eager), or "auto": when the training's work is large enough (COMPILE_FROM) that compiling
-    # pays for itself on a machine whose compiled-kernel cache is empty, a compiler is there and, on a
-    # CPU, the process has one core (on more, "on" is the faster where the work is large: see
-    # docs/performance.md; the default keeps the models of the documented figures). The
-    # two train the same function to float rounding, not the same weights: a seed names a model in
-    # one mode
+    # pays for itself on a machine whose compiled-kernel cache is empty, and a compiler is there (see
+    # docs/performance.md). The two train the same function to float rounding, not the same weights:
+    # a seed names a model in one mode
     compile: Compile = "auto"
 
     def __post_init__(self) -> None:
@@ -327,13 +324,10 @@ def compiles(cfg: TrainConfig, d: Derived, device_type: str) -> bool:
     """Whether a training of ``cfg`` (derived as ``d``) runs its network compiled on a device of
     ``device_type``: ``compile`` on or off as set; ``"auto"``: from :data:`COMPILE_FROM` edge
     evaluations, where a compiler for the device is installed (a C++ compiler for the CPU, Triton for
-    CUDA), and on a CPU only where the process may run on one core (:func:`usable_cores`, the
-    machine's, not its load: the choice, and so the model, is the same idle or loaded, for any
-    ``--jobs`` and ``--threads``)."""
+    CUDA). The choice reads the training and the machine, not its load: the model is the same idle or
+    loaded, for any ``--jobs`` and ``--threads``."""
     if cfg.compile != "auto":
         return cfg.compile == "on"
-    if device_type == "cpu" and usable_cores() > 1:
-        return False
     return d.work >= COMPILE_FROM and compiler_available(device_type)
 
 
