@@ -10,7 +10,6 @@ CPU queues the next step.
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -23,34 +22,32 @@ __all__ = ["FiniteWatch", "current", "watching"]
 
 class FiniteWatch:
     """Each cost term's first evaluation (counted per term) with a value that is not finite, kept on the
-    device: a term that goes NaN makes the poses NaN, and then every term after it."""
+    device: a term that goes NaN makes the poses NaN, and then every term after it. One per
+    :func:`watching` block, in the thread (context) that opened it: the library's worker threads start
+    without it and check at once."""
 
     def __init__(self) -> None:
         self._first: dict[str, Tensor] = {}  # per term: the index of its first bad evaluation, or inf
         self._count: dict[str, int] = {}
-        self._lock = threading.Lock()  # a context copied into worker threads shares the watch
 
     def record(self, name: str, values: Tensor) -> None:
         ok = torch.isfinite(values.detach()).all()
-        with self._lock:
-            k = self._count.get(name, 0)
-            self._count[name] = k + 1
-            mark = torch.where(ok, math.inf, float(k))
-            old = self._first.get(name)
-            self._first[name] = mark if old is None else torch.minimum(old, mark)
+        k = self._count.get(name, 0)
+        self._count[name] = k + 1
+        mark = torch.where(ok, math.inf, float(k))
+        old = self._first.get(name)
+        self._first[name] = mark if old is None else torch.minimum(old, mark)
 
     def all_finite(self, device: torch.device) -> Tensor:
         """One flag on ``device``: every recorded value was finite (not read here)."""
         out = torch.ones((), dtype=torch.bool, device=device)
-        with self._lock:
-            for first in self._first.values():
-                out = out & torch.isinf(first).to(device)
+        for first in self._first.values():
+            out = out & torch.isinf(first).to(device)
         return out
 
     def first_bad(self) -> str | None:
         """The term that was not finite first (ties: the first evaluated), or None; reads each record."""
-        with self._lock:
-            firsts = [(float(f), k, name) for k, (name, f) in enumerate(self._first.items())]
+        firsts = [(float(f), k, name) for k, (name, f) in enumerate(self._first.items())]
         bad = [b for b in firsts if not math.isinf(b[0])]
         return min(bad)[2] if bad else None
 
