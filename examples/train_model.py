@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> Path:
     t = time.perf_counter()
     model = fit(
         scenes,
-        TrainConfig(iterations=args.iterations, network=NetworkConfig(hidden=32, layers=2)),
+        TrainConfig(iterations=args.iterations, members=1, network=NetworkConfig(hidden=32, layers=2)),
         progress=not args.quiet,
         seed=args.seed,
     )

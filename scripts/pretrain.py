@@ -41,7 +41,7 @@ from scenescore.experiments.bundled import (
 from scenescore.experiments.prior import PRIOR_DATASETS, train_prior
 from scenescore.experiments.relation_models import train_config as relations_train_config
 from scenescore.experiments.relation_models import train_relation
-from scenescore.learn import TrainConfig, fit
+from scenescore.learn import ONE_NETWORK, TrainConfig, fit
 from scenescore.models import load
 from scenescore.runtime.provenance import git_commit
 from scenescore.scenarios import get
@@ -67,7 +67,11 @@ def pretrain_one(name: str, seed: int, folder: Path, iterations: int | None) -> 
     (:func:`train_relation`: 2048 examples, with counter-examples that move one object a little, trained
     again with the next member seed while its edge is flat). ``iterations``: instead of either default."""
     t0 = time.perf_counter()
-    config = TrainConfig() if iterations is None else TrainConfig(iterations=iterations)
+    config = (
+        TrainConfig(**ONE_NETWORK)
+        if iterations is None
+        else TrainConfig(iterations=iterations, **ONE_NETWORK)
+    )
     if name == PRIOR:
         model = train_prior(seed=seed, progress=True, config=config)
     elif name in RELATION_MODELS:

@@ -39,7 +39,7 @@ from scenescore.costs import ExampleRelations
 from scenescore.experiments.prior import train_prior
 from scenescore.experiments.zoo import zoo_cases
 from scenescore.experiments.zoo_verdicts import case_records, catastrophic, good
-from scenescore.learn import Run, TrainConfig, fit
+from scenescore.learn import ONE_NETWORK, Run, TrainConfig, fit
 from scenescore.models import load
 from scenescore.models.layout import BOUND_TOL
 from scenescore.models.trust import energy_per_object
@@ -128,10 +128,16 @@ def one_pair(
     shown = train_s + sub_scenes(train_s, augment, seed)
     model = tuned = None
     if set(ways) - set(TUNED):
-        model = fit(shown, TrainConfig(), seed=seed, progress=False, run=Run(cache=cache))
+        model = fit(shown, TrainConfig(**ONE_NETWORK), seed=seed, progress=False, run=Run(cache=cache))
     if set(TUNED) & set(ways):
         prior = prior_of(name, cache, priors)
-        tuned = fit(shown, tune or TrainConfig(), seed=seed, progress=False, run=Run(cache=cache, init=prior))
+        tuned = fit(
+            shown,
+            tune or TrainConfig(**ONE_NETWORK),
+            seed=seed,
+            progress=False,
+            run=Run(cache=cache, init=prior),
+        )
     ref = model if model is not None else tuned
     examples = ExampleRelations(train_s)
     cases = zoo_cases(sc, test_s, seed)
@@ -220,7 +226,7 @@ def main() -> None:
     ways = tuple(w for w in args.ways.split(",") if w)
     if not set(ways) <= set(WAYS):
         ap.error(f"--ways: choose from {', '.join(WAYS)}")
-    tune = TrainConfig(**json.loads(args.tune)) if args.tune else None
+    tune = TrainConfig(**{**ONE_NETWORK, **json.loads(args.tune)}) if args.tune else None
     if args.records:
         report(merged(args.records, ways), ways)
         return

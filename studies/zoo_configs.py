@@ -4,7 +4,8 @@
         --configs '[{}, {"edge_encoder": null}]' [--place '{"proposals": 0.0}'] [--jobs 2] [--out DIR] \\
         [--train-scenes 12] [--cache DIR]
 
-Each config is a JSON object of ``TrainConfig`` fields (``{}``: the CLI's defaults). For every config the
+Each config is a JSON object of ``TrainConfig`` fields over the zoo experiment's one network (``{}``:
+``TrainConfig(**ONE_NETWORK)``; ``{"members": 3}``: the default ensemble). For every config the
 zoo experiment's protocol runs as ``scenescore experiment zoo`` does (48 training and 16 test scenes,
 one object placed back per test scene, placement as ``place`` does), and one table row per scenario
 gives the mean, median and worst position error, the catastrophic count (more than 25 cm and 10 oracle
@@ -44,7 +45,7 @@ import torch
 from scenescore.experiments.execution import Execution
 from scenescore.experiments.zoo import run, training_split
 from scenescore.experiments.zoo_verdicts import Cases, catastrophic, good, trust_line
-from scenescore.learn import VALIDATION_FRACTION, TrainConfig
+from scenescore.learn import ONE_NETWORK, VALIDATION_FRACTION, TrainConfig
 from scenescore.learn.cache import cached_path
 from scenescore.models import ScoreModel, load
 from scenescore.models.ensemble import members_of
@@ -118,7 +119,9 @@ def main() -> None:
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     )
     summary = []
-    snap = None if args.singles_from is None else TrainConfig(**json.loads(args.singles_from))
+    snap = (
+        None if args.singles_from is None else TrainConfig(**{**ONE_NETWORK, **json.loads(args.singles_from)})
+    )
     for k, overrides in enumerate(configs):
         t0 = time.perf_counter()
         if snap is not None and args.cache is not None:
@@ -126,7 +129,7 @@ def main() -> None:
         res = run(
             args.seeds,
             scenarios,
-            config=TrainConfig(**overrides),
+            config=TrainConfig(**{**ONE_NETWORK, **overrides}),
             energy_only=args.energy_only,
             place=place,
             val=args.val,
@@ -166,7 +169,7 @@ def singles_from_snapshots(
     """Put in ``--cache`` the single model of ``overrides`` for every pair whose snapshot ensemble
     ``snap`` is there and whose single model is not: member 0 of the ensemble, with the single model's
     settings and a trust reference of its own (as ``fit`` computes it)."""
-    single = TrainConfig(**overrides)
+    single = TrainConfig(**{**ONE_NETWORK, **overrides})
     if single.members != 1 or snap.snapshots == 0 or replace(snap, members=1, ensemble="seeds") != single:
         return
     cpu = torch.device("cpu")

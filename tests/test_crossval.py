@@ -141,7 +141,18 @@ def test_train_on_a_dozen_scenes_trains_on_all_and_carries_the_cross_validated_f
     # --folds 1 keeps one hold-out whatever the data's size
     data = tmp_path / "d.jsonl"
     ss.write_jsonl(data, scenes)
-    argv = ["train", str(data), "--out", str(tmp_path / "h.ckpt"), "--iterations", "3", "--negatives", "2"]
+    argv = [
+        "train",
+        "--members",
+        "1",
+        str(data),
+        "--out",
+        str(tmp_path / "h.ckpt"),
+        "--iterations",
+        "3",
+        "--negatives",
+        "2",
+    ]
     assert main([*argv, "--folds", "1", "--force", "--quiet"]) == 0
     held = ss.load_model(tmp_path / "h.ckpt").info
     assert held.scenes == 5 and held.validation["folds"] is None and held.validation["scenes"] == 4
@@ -242,3 +253,32 @@ def test_a_cross_validated_model_keeps_its_log_where_it_was_asked_for(tmp_path):
     assert "train/loss" in tags(tmp_path / "two" / "member0") and "train/loss" in tags(
         tmp_path / "two" / "member1"
     )
+
+
+def test_an_ensembles_folds_train_one_network_each(monkeypatch):
+    """The final model trains as many members as asked; each fold's model is one network (FOLD_MEMBERS),
+    so that little data's folds do not multiply the ensemble's trainings."""
+    from scenescore.workflow import crossval
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def spy(one, groups, cfg, seed, jobs=1):
+        seen["groups"], seen["cfg"] = groups, cfg
+        raise Stop
+
+    monkeypatch.setattr(crossval, "train_groups", spy)
+    with pytest.raises(Stop):
+        ss.train(
+            _pairs(6),
+            replace(SMALL, members=3),
+            seed=2,
+            force=True,
+            progress=False,
+            outputs=Outputs(log=None),
+        )
+    final, *folds = seen["groups"]
+    assert seen["cfg"].members == 3 and final.config is None  # the final model: the pool's three members
+    assert len(folds) == FOLDS and all(g.config.members == crossval.FOLD_MEMBERS == 1 for g in folds)

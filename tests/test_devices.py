@@ -212,7 +212,7 @@ def test_device_errors_are_one_line_before_any_work(command, device, tmp_path, c
         pytest.skip("this machine has CUDA")
     none = str(tmp_path / "none")  # no file is read: the device is checked first
     argv = {
-        "train": ["train", none + ".jsonl", "--out", str(tmp_path / "m.ckpt")],
+        "train": ["train", "--members", "1", none + ".jsonl", "--out", str(tmp_path / "m.ckpt")],
         "place": ["place", none + ".ckpt", none + ".json"],
         "solve": ["solve", none + ".yaml"],
         "compare": ["compare", none + ".yaml"],
@@ -230,7 +230,18 @@ def files(tmp_path_factory):
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("device")
     assert main(["generate", "dining", "--n", "3", "--out", str(d / "data.jsonl"), "--seed", "1"]) == 0
-    train = ["train", str(d / "data.jsonl"), "--iterations", "2", "--val", "0", "--quiet", "--force"]
+    train = [
+        "train",
+        "--members",
+        "1",
+        str(d / "data.jsonl"),
+        "--iterations",
+        "2",
+        "--val",
+        "0",
+        "--quiet",
+        "--force",
+    ]
     assert main([*train, "--out", str(d / "m.ckpt"), "--device", "cpu"]) == 0
     scene = json.loads((d / "data.jsonl").read_text().splitlines()[0])
     scene["objects"][1]["pose"] = None
@@ -271,7 +282,7 @@ def _run(device: str, scenes: list[ss.Scene], tmp: Path) -> dict[str, Any]:
     from scenescore.solvers.kernel import PLACEMENT
 
     out: dict[str, Any] = {}
-    cfg = TrainConfig(iterations=2, batch_scenes=2, negatives=2, perturbed=1, chain_steps=2)
+    cfg = TrainConfig(members=1, iterations=2, batch_scenes=2, negatives=2, perturbed=1, chain_steps=2)
     model = fit(scenes[:3], cfg, seed=5, progress=False, validation=scenes[3:], device=device)
     assert model.device == (CPU if device == "cpu" else GPU)
     model.save(tmp / f"{device}.ckpt")
@@ -325,7 +336,7 @@ def test_a_learned_energy_runs_where_its_model_is(tmp_path):
     scenes = ss.scenarios.get("dining").generate(4, 0)
     mp = pytest.MonkeyPatch()
     with fake_gpu(mp):
-        model = fit(scenes, TrainConfig(iterations=1, negatives=2), progress=False, device="cuda")
+        model = fit(scenes, TrainConfig(members=1, iterations=1, negatives=2), progress=False, device="cuda")
         q = scenes[0].copy()
         q.objects[0].pose = None
         assert ss.Problem(q, LearnedEnergy(model)).device == GPU  # the model's device by default

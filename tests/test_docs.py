@@ -80,7 +80,7 @@ def test_costs_example_relations_snippet_runs(tmp_path, monkeypatch):
     shutil.copytree(ROOT / "examples", tmp_path / "examples", ignore=shutil.ignore_patterns("*.ckpt"))
     scenes = ss.scenarios.get("dining").generate(6, 0)
     ss.write_jsonl(tmp_path / "data.jsonl", scenes)
-    ss.learn.fit(scenes, ss.learn.TrainConfig(iterations=3), seed=0, progress=False).save(
+    ss.learn.fit(scenes, ss.learn.TrainConfig(members=1, iterations=3), seed=0, progress=False).save(
         tmp_path / "model.ckpt"
     )
     monkeypatch.chdir(tmp_path)

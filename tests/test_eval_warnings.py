@@ -85,7 +85,9 @@ def test_training_on_a_dozen_scenes_warns_and_every_placement_of_the_model_says_
     """Two iterations on a dozen scenes learn nothing a held-out scene shows: training keeps the model
     (force), warns with both losses, the checkpoint keeps the caveats and placements carry them."""
     scenes = get("dining").generate(12, seed=0)
-    cfg = TrainConfig(iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1))
+    cfg = TrainConfig(
+        members=1, iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1)
+    )
     # one hold-out (cross-validation, the default for a dozen scenes, pools the same figures: test_crossval)
     model = train(
         scenes,

@@ -33,7 +33,9 @@ needs_rlimit = pytest.mark.skipif(resource is None, reason="RLIMIT_FSIZE needs P
 
 LIMIT = 4096  # bytes: below every new output here, far above what starting the command writes
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
-CFG = TrainConfig(iterations=30, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+CFG = TrainConfig(
+    members=1, iterations=30, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+)
 SEED = 3
 
 
@@ -90,7 +92,7 @@ def _train_argv(data: Path, out: Path, *extra: object) -> list[object]:
     """``scenescore train`` with the settings of ``CFG``, on every scene (``--val 0``)."""
     settings = ["--set", "batch_scenes=4", "--set", "network.hidden=16", "--set", "network.layers=1"]
     return [
-        "train", data, "--out", out, "--iterations", "30", "--negatives", "4", *settings, "--val", "0",
+        "train", "--members", "1", data, "--out", out, "--iterations", "30", "--negatives", "4", *settings, "--val", "0",
         "--force", "--quiet", "--seed", SEED, "--threads", "1", *extra,
     ]  # fmt: skip
 

@@ -23,7 +23,9 @@ from scenescore.cli import main
 from scenescore.learn import NetworkConfig, Run, StateError, TrainConfig, fit
 from scenescore.models import load
 
-CFG = TrainConfig(iterations=30, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+CFG = TrainConfig(
+    members=1, iterations=30, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+)
 SEED = 3
 
 
@@ -97,7 +99,7 @@ def test_a_finished_state_resumes_without_training(scenes, uninterrupted, tmp_pa
     [
         ({"seed": SEED + 1}, "seed"),
         ({"scenes_from": 1}, "scenes"),
-        ({"config": TrainConfig(iterations=40, batch_scenes=4, negatives=4)}, "settings"),
+        ({"config": TrainConfig(members=1, iterations=40, batch_scenes=4, negatives=4)}, "settings"),
     ],
 )
 def test_a_state_of_another_training_is_refused(scenes, tmp_path, change, part):
@@ -128,7 +130,7 @@ def _cli(data: Path, out: Path, *extra: str) -> list[str]:
     """``scenescore train`` with the settings of ``CFG``, on every scene (``--val 0``)."""
     settings = ["--set", "batch_scenes=4", "--set", "network.hidden=16", "--set", "network.layers=1"]
     return [
-        sys.executable, "-m", "scenescore", "train", str(data), "--out", str(out), "--iterations", "30",
+        sys.executable, "-m", "scenescore", "train", "--members", "1", str(data), "--out", str(out), "--iterations", "30",
         "--negatives", "4", *settings, "--val", "0", "--force", "--quiet", "--seed", str(SEED),
         "--threads", "1", "--save-every", "10", *extra,
     ]  # fmt: skip

@@ -16,7 +16,12 @@ from scenescore.learn.data import data_scale
 from scenescore.planning.placement import PLACE, place_many
 
 CFG = TrainConfig(
-    iterations=12, batch_scenes=4, negatives=4, perturbed=2, network=NetworkConfig(hidden=16, layers=2)
+    members=1,
+    iterations=12,
+    batch_scenes=4,
+    negatives=4,
+    perturbed=2,
+    network=NetworkConfig(hidden=16, layers=2),
 )
 SMALL = replace(PLACE, particles=8, candidates=64, chain=replace(PLACE.chain, steps=8, final_descent=4))
 

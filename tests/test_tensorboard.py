@@ -18,7 +18,9 @@ from scenescore.learn.logs import log_validation
 from scenescore.scenarios import get  # noqa: E402
 from scenescore.scene.scene import write_jsonl  # noqa: E402
 
-CFG = TrainConfig(iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+CFG = TrainConfig(
+    members=1, iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+)
 
 
 def _scalars(log_dir):
@@ -55,6 +57,8 @@ def test_cli_log_dir(tmp_path, capsys, monkeypatch):
     write_jsonl(tmp_path / "v.jsonl", get("tv").generate(1, seed=1))
     argv = [
         "train",
+        "--members",
+        "1",
         str(tmp_path / "d.jsonl"),
         "--out",
         str(tmp_path / "m.ckpt"),

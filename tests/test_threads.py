@@ -94,7 +94,7 @@ def test_free_cores_is_a_share_of_this_process_cpus():
 def test_train_and_place_leave_torchs_setting_alone():
     scenes = ss.scenarios.get("dining").generate(4, 0)
     torch.set_num_threads(2)
-    model = fit(scenes, TrainConfig(iterations=2, negatives=2), seed=0, progress=False)
+    model = fit(scenes, TrainConfig(members=1, iterations=2, negatives=2), seed=0, progress=False)
     assert torch.get_num_threads() == 2
     with ss.thread_budget(1):
         place(model, scenes[0].without("fork_0"), LangevinOptions(particles=4, chain=SHORT), seed=0)
@@ -173,7 +173,7 @@ def test_a_seed_names_the_weights_and_placements_whatever_the_load(monkeypatch):
     monkeypatch.setattr(chunks, "in_parallel", spy)
 
     def run():
-        model = fit(scenes, TrainConfig(iterations=1), seed=0, progress=False)
+        model = fit(scenes, TrainConfig(members=1, iterations=1), seed=0, progress=False)
         placed = place(model, hole, LangevinOptions(particles=256, chain=SHORT), seed=0)
         return [p.detach().clone() for p in model.net.parameters()], placed
 

@@ -30,7 +30,9 @@ def _offset_scenes(n, seed):
     return out
 
 
-CFG = TrainConfig(iterations=150, batch_scenes=8, negatives=8, network=NetworkConfig(hidden=32, layers=2))
+CFG = TrainConfig(
+    members=1, iterations=150, batch_scenes=8, negatives=8, network=NetworkConfig(hidden=32, layers=2)
+)
 PLACE = replace(
     PLACE_DEFAULT,
     particles=64,
@@ -53,7 +55,9 @@ def test_tiny_training_learns_a_fixed_offset():
 
 def test_same_seed_same_numbers():
     torch.set_num_threads(1)
-    cfg = TrainConfig(iterations=10, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+    cfg = TrainConfig(
+        members=1, iterations=10, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+    )
     scenes = _offset_scenes(6, 1)
     m1 = fit(scenes, cfg, seed=5, progress=False)
     m2 = fit(scenes, cfg, seed=5, progress=False)
@@ -85,7 +89,9 @@ def test_fixed_objects_never_move():
 def test_feature_noise_is_seeded_and_changes_training():
     torch.set_num_threads(1)
     scenes = _offset_scenes(6, 1)
-    cfg = TrainConfig(iterations=5, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+    cfg = TrainConfig(
+        members=1, iterations=5, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+    )
     quiet = TrainConfig(**{**cfg.to_dict(), "feature_noise": 0.0})
     a, b = (fit(scenes, cfg, seed=2, progress=False) for _ in range(2))
     c = fit(scenes, quiet, seed=2, progress=False)
@@ -97,6 +103,7 @@ def test_size_noise_is_seeded_and_changes_training():
     torch.set_num_threads(1)
     scenes = _offset_scenes(6, 1)
     cfg = TrainConfig(
+        members=1,
         iterations=5,
         batch_scenes=4,
         negatives=4,
@@ -110,7 +117,7 @@ def test_size_noise_is_seeded_and_changes_training():
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
     with pytest.raises(ConfigError, match="size_noise"):
-        TrainConfig(size_noise=-0.1)
+        TrainConfig(members=1, size_noise=-0.1)
 
 
 def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch):
@@ -119,7 +126,12 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
     torch.set_num_threads(1)
     scenes = _offset_scenes(6, 1)
     cfg = TrainConfig(
-        iterations=8, batch_scenes=4, negatives=4, average=0.5, network=NetworkConfig(hidden=16, layers=1)
+        members=1,
+        iterations=8,
+        batch_scenes=4,
+        negatives=4,
+        average=0.5,
+        network=NetworkConfig(hidden=16, layers=1),
     )
     seen = []  # the weights after each averaged iteration
 
@@ -146,14 +158,14 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
     assert torch.equal(next(again.net.parameters()), next(model.net.parameters()))
     for bad in (1.0, -0.1, float("nan")):
         with pytest.raises(ConfigError, match="average"):
-            TrainConfig(average=bad)
+            TrainConfig(members=1, average=bad)
 
 
 def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
     scenes = _offset_scenes(4, 1)
     small = {"iterations": 2, "batch_scenes": 2, "negatives": 2}
-    assert fit(scenes, TrainConfig(**small), seed=0, progress=False).config.edge_encoder == 32
-    raw = fit(scenes, TrainConfig(**small, **RAW_EDGES), seed=0, progress=False)
+    assert fit(scenes, TrainConfig(members=1, **small), seed=0, progress=False).config.edge_encoder == 32
+    raw = fit(scenes, TrainConfig(members=1, **small, **RAW_EDGES), seed=0, progress=False)
     assert raw.config.edge_encoder is None and raw.info.train_config["size_noise"] == 0.0
 
 
@@ -169,7 +181,9 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
         return Scene(objs, ((-0.6, -0.3), (0.6, 0.3)))
 
     scenes = [row(n, 0.001 * n) for n in (3, 4, 5, 8, 9, 12, 19, 20)]
-    model = fit(scenes, TrainConfig(iterations=2, batch_scenes=4, negatives=2), seed=0, progress=False)
+    model = fit(
+        scenes, TrainConfig(members=1, iterations=2, batch_scenes=4, negatives=2), seed=0, progress=False
+    )
     st = model.tensors(scenes)
     by = SizeGroups(st.mask.sum(dim=1))
     assert len(by.groups) > 1 and sorted(i for g, _ in by.groups for i in g) == list(range(8))
@@ -186,7 +200,7 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     assert len(SizeGroups(torch.tensor([6, 6, 6, 6])).groups) == 1
     assert len(SizeGroups(st.mask.sum(dim=1), enabled=False).groups) == 1
     with pytest.raises(ConfigError, match="group_sizes"):
-        TrainConfig(group_sizes="yes")  # type: ignore[arg-type]
+        TrainConfig(members=1, group_sizes="yes")  # type: ignore[arg-type]
     assert best_cuts([2, 2, 10, 10], 4) in ([2, 4], [1, 2, 3, 4], [2, 3, 4], [1, 2, 4])
 
 
@@ -225,14 +239,16 @@ def test_reanchored_negatives_move_one_object_next_to_another_anchor():
 def test_reanchored_counter_examples_are_seeded_and_change_training():
     torch.set_num_threads(1)
     scenes = [_row(4) for _ in range(4)]
-    cfg = TrainConfig(iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+    cfg = TrainConfig(
+        members=1, iterations=4, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+    )
     a, b = (fit(scenes, replace(cfg, reanchored=3), seed=2, progress=False) for _ in range(2))
     c = fit(scenes, replace(cfg, reanchored=0), seed=2, progress=False)
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
     assert a.info.chance_loss == pytest.approx(math.log(4 + 3 + 1))
     with pytest.raises(ConfigError, match="reanchored"):
-        TrainConfig(reanchored=-1)
+        TrainConfig(members=1, reanchored=-1)
 
 
 def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
@@ -241,16 +257,18 @@ def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     data = model.tensors([_row(5)] * 2)
-    cfg = TrainConfig(reanchor_restart=1.0)
+    cfg = TrainConfig(members=1, reanchor_restart=1.0)
     buf = ChainBuffer(data, 6, cfg, torch.Generator().manual_seed(0))
     moved = (buf.poses != data.poses[:, None]).any(dim=-1)  # (S, K, N)
     assert torch.equal(moved, buf.movable)  # the object put on another anchor, and it alone, moves
     assert bool((moved.sum(dim=-1) == 1).all())
     assert bool((buf.age == cfg.chain.steps // 2).all())  # halfway through the schedule
-    plain = ChainBuffer(data, 6, TrainConfig(reanchor_restart=0.0), torch.Generator().manual_seed(0))
+    plain = ChainBuffer(
+        data, 6, TrainConfig(members=1, reanchor_restart=0.0), torch.Generator().manual_seed(0)
+    )
     assert bool((plain.age == 0).all()) and int(plain.movable.sum(dim=-1).max()) > 1
     with pytest.raises(ConfigError, match="reanchor_restart"):
-        TrainConfig(reanchor_restart=1.5)
+        TrainConfig(members=1, reanchor_restart=1.5)
 
 
 def test_model_cache_trains_each_model_once_and_only_where_asked(tmp_path, monkeypatch):

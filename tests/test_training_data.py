@@ -74,7 +74,7 @@ def test_data_that_cannot_teach_is_refused_by_name(tmp_path, lines, edit, needle
 
 def test_the_cli_refuses_before_training_and_writes_nothing(tmp_path, lines, capsys):
     p = _file(tmp_path, lines, _empty_third)
-    assert main(["train", str(p), "--out", str(tmp_path / "m.ckpt"), "--quiet"]) == 2
+    assert main(["train", "--members", "1", str(p), "--out", str(tmp_path / "m.ckpt"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{p}:3" in err[0] and not (tmp_path / "m.ckpt").exists()
 
@@ -84,7 +84,19 @@ def test_a_run_that_learned_nothing_writes_no_checkpoint_unless_forced(tmp_path,
     p = _file(tmp_path, lines)
     out = tmp_path / "m.ckpt"
     out.write_bytes(b"an earlier checkpoint")
-    argv = ["train", str(p), "--out", str(out), "--iterations", "1", "--val", "0", "--quiet"]
+    argv = [
+        "train",
+        "--members",
+        "1",
+        str(p),
+        "--out",
+        str(out),
+        "--iterations",
+        "1",
+        "--val",
+        "0",
+        "--quiet",
+    ]
     assert main(argv) == 2
     assert "learned nothing" in capsys.readouterr().err
     assert out.read_bytes() == b"an earlier checkpoint"  # nothing lost

@@ -15,7 +15,9 @@ from scenescore.scenarios import get
 from scenescore.scene.units import declared_unit
 from scenescore.workflow import Outputs, Validation
 
-TINY = TrainConfig(iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1))
+TINY = TrainConfig(
+    members=1, iterations=2, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=8, layers=1)
+)
 
 
 def _table(t_cm: float, nn_cm: float, unit: str | None) -> list[str]:

@@ -96,6 +96,30 @@ def test_default_jobs_is_one_per_usable_core_on_the_cpu(monkeypatch):
     assert default_jobs(torch.device("mps")) == 1
 
 
+@pytest.mark.parametrize(
+    "tasks, cores, jobs",
+    [(1, 2, 1), (2, 2, 2), (3, 2, 3), (4, 2, 2), (5, 2, 2), (9, 2, 3), (3, 1, 1), (6, 4, 6), (8, 4, 4)],
+)
+def test_balanced_jobs_leave_no_core_idle_in_a_last_round(tasks, cores, jobs):
+    from scenescore.runtime.workers import balanced_jobs
+
+    assert balanced_jobs(tasks, cores) == jobs
+
+
+def test_trainings_share_the_cores_where_they_end_sooner(monkeypatch):
+    import torch
+
+    from scenescore.learn.members import training_jobs
+    from scenescore.runtime import cores
+
+    monkeypatch.setattr(cores, "_cpus", lambda: [0, 1])
+    cpu = torch.device("cpu")
+    assert training_jobs(None, 3, cpu) == 3  # three members on two cores side by side
+    assert training_jobs(None, 4, cpu) == 2
+    assert training_jobs(2, 3, cpu) == 2  # as many as asked for
+    assert training_jobs(5, 3, cpu) == 3
+
+
 @pytest.mark.parametrize("free_gib, jobs", [(100, 3), (4.5, 2), (1, 1)])
 def test_default_jobs_share_a_cuda_device_as_its_free_memory_allows(monkeypatch, free_gib, jobs):
     import torch

@@ -16,7 +16,12 @@ from scenescore.workflow import Outputs, Validation
 from scenescore.workflow.training import NothingLearned, holdout
 
 SMALL = TrainConfig(
-    iterations=3, batch_scenes=2, negatives=2, reanchored=1, network=NetworkConfig(hidden=8, layers=1)
+    members=1,
+    iterations=3,
+    batch_scenes=2,
+    negatives=2,
+    reanchored=1,
+    network=NetworkConfig(hidden=8, layers=1),
 )
 
 
@@ -40,6 +45,8 @@ def _cli_model(tmp_path) -> tuple[ss.models.ScoreModel, str]:
     out = tmp_path / "m.ckpt"
     argv = [
         "train",
+        "--members",
+        "1",
         str(data),
         "--out",
         str(out),
@@ -66,7 +73,7 @@ def _same(a: ss.models.ScoreModel, b: ss.models.ScoreModel) -> None:
 
 @pytest.mark.slow
 def test_the_cli_saves_the_model_the_library_returns(tmp_path, capsys):
-    cfg = TrainConfig(iterations=3, negatives=2)
+    cfg = TrainConfig(members=1, iterations=3, negatives=2)
     saved, data = _cli_model(tmp_path)
     printed = capsys.readouterr().out
     lines: list[str] = []

@@ -82,10 +82,10 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
         "--members",
         type=number(1, MAX_MEMBERS, integer=True),
         default=None,
-        help="train an ensemble of this many networks (seeds SEED, SEED+1000, ...): their mean energy "
+        help="the networks of the model's ensemble (seeds SEED, SEED+1000, ...): their mean energy "
         "places, and a placed object the members disagree on is flagged; members times the training "
-        "time (default 1; --set ensemble=snapshots takes the members from one run instead, "
-        "1 + (members - 1) x snapshot_cycle times the training)",
+        "work (default 3; 1: one network; --set ensemble=snapshots takes the members from one run "
+        "instead, 1 + (members - 1) x snapshot_cycle times the training)",
     )
     p.add_argument(
         "--activation",
@@ -147,8 +147,8 @@ def _add_train_run(p: argparse.ArgumentParser) -> None:
         type=JOBS,
         default=None,
         help="worker processes, one thread each, that the model's trainings run in side by side: the final "
-        "model's and cross-validation's folds', each one network or an ensemble's members (default: one "
-        "per usable core, at most one per training; the model does not depend on it)",
+        "model's members and cross-validation's folds' networks (default: one per usable core, up to two "
+        "where the trainings then end sooner, at most one per training; the model does not depend on it)",
     )
 
 

@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..evaluation.cases import OraclePlacer, make_cases, score_cases
-    from ..learn import TrainConfig
+    from ..learn import ONE_NETWORK, TrainConfig
     from ..planning.placement import SceneScorePlacer
     from ..scenarios import DiningScenario
     from ..scene.scene import write_jsonl
@@ -47,7 +47,11 @@ def run(args: argparse.Namespace) -> int:
 
     device = str(device_of(args))  # checked before any work
     t0 = time.perf_counter()
-    cfg = TrainConfig() if args.iterations is None else TrainConfig(iterations=args.iterations)
+    cfg = (
+        TrainConfig(**ONE_NETWORK)
+        if args.iterations is None
+        else TrainConfig(iterations=args.iterations, **ONE_NETWORK)
+    )
     out: Path = args.out
     scenario = DiningScenario()
     train, test = scenario.split(args.seed)

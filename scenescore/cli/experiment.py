@@ -120,7 +120,8 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         "--members",
         type=number(1, MAX_MEMBERS, integer=True),
         default=None,
-        help="zoo: each model an ensemble of this many networks (TrainConfig.members; default 1)",
+        help="zoo: each model an ensemble of this many networks (TrainConfig.members; default 1, the "
+        "paper's one network, as every experiment trains)",
     )
     p.add_argument(
         "--energy-only",

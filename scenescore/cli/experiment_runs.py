@@ -281,7 +281,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     from dataclasses import replace
 
     from ..experiments import tidy
-    from ..learn import TrainConfig
+    from ..learn import ONE_NETWORK, TrainConfig
     from ..scene.outputs import atomic_write_text
 
     names = tuple(args.scenarios.split(",")) if args.scenarios else tidy.SCENARIOS
@@ -289,7 +289,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
         names = ("dining",)
     iterations = args.iterations or (30 if args.quick else None)
     test_scenes = args.test_scenes or (1 if args.quick else 3)
-    cfg = TrainConfig(iterations=iterations) if iterations else TrainConfig()
+    cfg = TrainConfig(iterations=iterations, **ONE_NETWORK) if iterations else TrainConfig(**ONE_NETWORK)
     efforts = tidy.EFFORTS if args.efforts is None else _efforts(args.efforts)
     log = (lambda s: None) if args.quiet else print
     # tidy's own lines follow --quiet; its training's bars are off whatever it is (tidy's default)

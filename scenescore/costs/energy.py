@@ -16,7 +16,7 @@ from ..models.casadi import energy_mx
 from ..models.explain import Explanation, explain
 from ..models.flags import assess
 from ..models.model import with_walls
-from ..models.moving import MovingOne
+from ..models.moving import Mover
 from ..models.network import round_flags
 from ..models.rivals import rivals
 from ..models.trust import CAVEAT, Assessment, outside_data
@@ -70,7 +70,7 @@ class LearnedEnergy(Cost, Guide):
         self.objects = None if objects is None else list(objects)
         self.relations = relations
         self._fn: Callable[[Tensor], Tensor] | None = None
-        self._mover: MovingOne | None = None  # where one object moves (set when bound)
+        self._mover: Mover | None = None  # where one object moves (set when bound)
         self._idx: Tensor | None = None
         self.visible_scene: Scene | None = None
 

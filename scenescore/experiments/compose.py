@@ -41,7 +41,7 @@ import numpy as np
 import torch
 
 from ..evaluation.baselines import NeatNet, NeatNetConfig
-from ..learn import Run, TrainConfig, fit
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit
 from ..scenarios.tv import TVScenario
 from ..scene.scene import Scene, SceneError
 from ..solvers import get, solve
@@ -125,7 +125,9 @@ def train_energy(
 
 def train_config(quick: bool = False) -> TrainConfig:
     """The training settings of :func:`train_energy`."""
-    return TrainConfig(iterations=100 if quick else 600, full_fraction=1.0, single_fraction=0.0)
+    return TrainConfig(
+        iterations=100 if quick else 600, full_fraction=1.0, single_fraction=0.0, **ONE_NETWORK
+    )
 
 
 def tv_problem(scene: Scene, model: ScoreModel) -> Problem:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..learn import Run, TrainConfig, fit
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit
 from ..planning.heatmap import energy_grid, grid_minimum
 from ..scenarios import DeskScenario
 from ..viz.plot import draw_heatmap
@@ -101,7 +101,7 @@ def _seed(
     train_s, _ = sc.split(seed)
     if config["n_train"] is not None:
         train_s = train_s[: config["n_train"]]
-    tc = TrainConfig(iterations=config["iterations"])
+    tc = TrainConfig(iterations=config["iterations"], **ONE_NETWORK)
     model = fit(train_s, tc, seed=seed, progress=progress, device=device, run=Run(cache=cache))
     figs: dict[str, float] = {}
     files: list[str] = []

@@ -16,7 +16,7 @@ from typing import Any
 
 from ..encoders import Encoder
 from ..evaluation.cases import MissingCase, OraclePlacer, make_cases, score_cases
-from ..learn import RAW_EDGES, TrainConfig
+from ..learn import ONE_NETWORK, RAW_EDGES, TrainConfig
 from ..planning.placement import Placer, SceneScorePlacer
 from ..scenarios import DiningScenario
 from ..scene.scene import Scene, SceneError
@@ -40,7 +40,7 @@ def _methods(
 ) -> dict[str, Callable[[], Placer]]:
     from ..evaluation.baselines import NearestNeighbour, NeatNet, NeatNetConfig
 
-    tc = TrainConfig(iterations=150) if quick else TrainConfig()
+    tc = TrainConfig(iterations=150, **ONE_NETWORK) if quick else TrainConfig(**ONE_NETWORK)
 
     def scenescore(name: str, train: Mapping[str, Any] | None = None, **network: Any) -> SceneScorePlacer:
         net = replace(tc.network, **network)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..encoders import Encoder
 from ..evaluation.cases import MissingCase, OraclePlacer, make_cases
-from ..learn import TrainConfig
+from ..learn import ONE_NETWORK, TrainConfig
 from ..planning.placement import Placer, SceneScorePlacer
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
@@ -65,7 +65,7 @@ def _methods(
     device: Any = None,
     cache: Any = None,
 ) -> dict[str, Callable[[], Placer]]:
-    tc = TrainConfig(iterations=60) if quick else TrainConfig()
+    tc = TrainConfig(iterations=60, **ONE_NETWORK) if quick else TrainConfig(**ONE_NETWORK)
 
     def neatnet_r() -> Placer:
         from ..evaluation.baselines import NeatNetR

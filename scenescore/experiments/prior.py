@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from ..errors import ConfigError
-from ..learn import Run, TrainConfig, fit
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit
 from ..learn.warm_start import at_unit_scale
 from ..models import ScoreModel
 from ..scenarios import get
@@ -48,5 +48,5 @@ def train_prior(
 ) -> ScoreModel:
     """The prior of :func:`prior_scenes` (``without`` those datasets), trained with ``config`` (default
     the defaults) and ``seed``."""
-    cfg = config or TrainConfig()
+    cfg = config or TrainConfig(**ONE_NETWORK)
     return fit(prior_scenes(without, seed), cfg, seed=seed, progress=progress, run=run)

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from ..costs import Relation
-from ..learn import Run, TrainConfig, fit
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit
 from ..models import ScoreModel
 from ..models.ensemble import member_seed
 from ..problem.problem import Problem
@@ -77,7 +77,7 @@ def train_config(iterations: int | None = None, quick: bool = False) -> TrainCon
     """The relation models' (and the whole-scene energy's) training settings: the trainer's defaults,
     ``iterations`` (default 600; 100 with ``quick``) and :data:`PERTURBED` counter-examples per example
     that move one of its objects a little, which sharpen the energy at the edge of a relation's region."""
-    return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED)
+    return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED, **ONE_NETWORK)
 
 
 def relation_training(
@@ -96,7 +96,7 @@ def relation_training(
 def validation_examples(relation: str, seed: int, examples: int, count: int = VALIDATION) -> list[Scene]:
     """The ``count`` examples of ``relation``'s training stream for ``seed`` that follow the ``examples``
     a model trains on: the same generator and stream (:func:`relation_training`'s), never trained on."""
-    return relation_training(relation, seed, TrainConfig(), examples + count)[0][examples:]
+    return relation_training(relation, seed, TrainConfig(**ONE_NETWORK), examples + count)[0][examples:]
 
 
 def edge(model: ScoreModel, relation: str, examples: Sequence[Scene], moves: Sequence[float]) -> list[Edge]:

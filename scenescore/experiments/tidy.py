@@ -29,7 +29,7 @@ from typing import Any, cast
 import numpy as np
 
 from ..costs import Displacement
-from ..learn import Run, TrainConfig, fit
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit
 from ..models import ScoreModel
 from ..planning.placement import place_many
 from ..planning.tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
@@ -280,7 +280,7 @@ def run_scenario(
     train_s, test_s = sc.split(seed)
     model = fit(
         train_s,
-        config or TrainConfig(),
+        config or TrainConfig(**ONE_NETWORK),
         seed=seed,
         progress=ex.progress,
         device=ex.device,

@@ -26,7 +26,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..evaluation.cases import MissingCase
-from ..learn import Run, TrainConfig, fit, split_validation
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit, split_validation
 from ..models import ScoreModel
 from ..models.layout import BOUND_TOL
 from ..models.trust import energy_per_object
@@ -206,7 +206,7 @@ def run_one(
     train_s, held, test_s = training_split(name, seed, val, train_scenes)
     model = fit(
         train_s,
-        config or TrainConfig(),
+        config or TrainConfig(**ONE_NETWORK),
         seed=seed,
         progress=progress,
         device=device,

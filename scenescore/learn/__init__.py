@@ -15,7 +15,7 @@ What ``scenescore train`` does around the training (hold scenes out, evaluate, c
 save) is :func:`scenescore.train`, in :mod:`scenescore.workflow`.
 """
 
-from .config import RAW_EDGES, NetworkConfig, TrainConfig, derive
+from .config import ONE_NETWORK, RAW_EDGES, NetworkConfig, TrainConfig, derive
 from .data import VALIDATION_FRACTION, check_training_data, split_validation
 from .loop import fit
 from .losses import heldout_loss
@@ -23,6 +23,7 @@ from .run import Run
 from .training_state import StateError
 
 __all__ = [
+    "ONE_NETWORK",
     "RAW_EDGES",
     "NetworkConfig",
     "Run",

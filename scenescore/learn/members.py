@@ -27,7 +27,7 @@ from ..models import ModelInfo, ScoreModel, load
 from ..models.ensemble import EnsembleNet, member_seed, members_of
 from ..models.trust import reference
 from ..runtime.devices import resolve_device
-from ..runtime.workers import Log, default_jobs, map_in_workers
+from ..runtime.workers import Log, balanced_jobs, default_jobs, map_in_workers
 from ..scene.scene import Scene
 from .config import TrainConfig, derive
 from .run import Run
@@ -57,26 +57,33 @@ def member_state(state: str | os.PathLike, member: int) -> Path:
 
 def training_jobs(jobs: int | None, tasks: int, device: torch.device) -> int:
     """The worker processes ``tasks`` trainings (an ensemble's members, cross-validation's folds) run in:
-    ``jobs``, at most one per task, by default one per usable core
-    (:func:`~scenescore.runtime.workers.default_jobs`); 1 (this process) inside a worker process, which cannot
-    start workers of its own."""
+    ``jobs``, at most one per task; by default one per usable core
+    (:func:`~scenescore.runtime.workers.default_jobs`), and on a CPU up to two per core where the tasks
+    then end sooner (:func:`~scenescore.runtime.workers.balanced_jobs`: three members on two cores side
+    by side); 1 (this process) inside a worker process, which cannot start workers of its own."""
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise ConfigError(
             f"train: jobs: expected a whole number of worker processes, 1 or more, got {jobs!r}"
         )
     if multiprocessing.current_process().daemon:
         return 1
-    return min(default_jobs(device) if jobs is None else jobs, tasks)
+    if jobs is not None:
+        return min(jobs, tasks)
+    if device.type == "cpu":
+        return balanced_jobs(tasks, default_jobs(device))
+    return min(default_jobs(device), tasks)
 
 
 @dataclass(frozen=True)
 class Group:
     """One model to train: on ``scenes``, as ``job`` says (its ``validation`` its trust reference), named
-    ``label`` in the log lines of worker processes ("fold 2 of 3"; empty: the model)."""
+    ``label`` in the log lines of worker processes ("fold 2 of 3"; empty: the model); ``config``: its
+    own settings instead of the pool's (cross-validation's folds: one network each)."""
 
     scenes: Sequence[Scene]
     job: Job
     label: str = ""
+    config: TrainConfig | None = None
 
 
 def train_members(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, seed: int, job: Job) -> ScoreModel:
@@ -95,31 +102,29 @@ def train_groups(
     processes (:func:`training_jobs`), so that a final model and its cross-validation's folds train side
     by side; each network is the one it would be alone, whatever the number of processes."""
     dev = resolve_device(groups[0].job.device)
-    seeds = [member_seed(seed, m) for m in range(cfg.runs)]
-    tasks = [(g, m, s) for g in range(len(groups)) for m, s in enumerate(seeds)]
+    cfgs = [g.config or cfg for g in groups]
+    tasks = [(g, m, member_seed(seed, m)) for g, c in enumerate(cfgs) for m in range(c.runs)]
     n = training_jobs(jobs, len(tasks), dev)
     if n == 1:
-        nets = [_member(one, groups[g].scenes, cfg, groups[g].job, m, s) for g, m, s in tasks]
+        nets = [_member(one, groups[g].scenes, cfgs[g], groups[g].job, m, s) for g, m, s in tasks]
     else:
         if groups[0].job.progress:
             what = f"{cfg.runs} members" if len(groups) == 1 else f"{len(tasks)} networks"
             print(f"training {what} in {n} worker processes", file=sys.stderr)
         with tempfile.TemporaryDirectory(prefix="scenescore-members-") as tmp:
-            quiet = [replace(g, job=replace(g.job, progress=False)) for g in groups]
-            work = partial(_member_in_worker, one, quiet, cfg, tmp)
+            quiet = [replace(g, job=replace(g.job, progress=False), config=c) for g, c in zip(groups, cfgs)]
+            work = partial(_member_in_worker, one, quiet, tmp)
             bar = "members" if len(groups) == 1 else "trainings"
             paths = map_in_workers(work, tasks, jobs=n, log=_stderr, bar=bar)
             # each with the encoder its training derived (a footprint encoder reads sizes in the data's
             # unit), not the one given: a checkpoint read with that would encode the objects otherwise
-            used = [derive(_one_run(cfg), g.scenes, g.job.encoder).encoder for g in groups]
+            used = [derive(_one_run(c), g.scenes, g.job.encoder).encoder for g, c in zip(groups, cfgs)]
             nets = [load(p, encoder=used[g], device=dev) for p, (g, _, _) in zip(paths, tasks)]
-    k = cfg.runs
-    return [
-        nets[g * k]
-        if k == 1
-        else _mean_of(nets[g * k : (g + 1) * k], cfg, seed, grp.scenes, grp.job.validation)
-        for g, grp in enumerate(groups)
-    ]
+    models, start = [], 0
+    for grp, c in zip(groups, cfgs):
+        mine, start = nets[start : start + c.runs], start + c.runs
+        models.append(mine[0] if c.runs == 1 else _mean_of(mine, c, seed, grp.scenes, grp.job.validation))
+    return models
 
 
 def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, job: Job, m: int, seed: int) -> ScoreModel:
@@ -148,12 +153,14 @@ def _member(one: Train, scenes: Sequence[Scene], cfg: TrainConfig, job: Job, m: 
 
 
 def _member_in_worker(
-    one: Train, groups: Sequence[Group], cfg: TrainConfig, tmp: str, task: tuple[int, int, int], log: Log
+    one: Train, groups: Sequence[Group], tmp: str, task: tuple[int, int, int], log: Log
 ) -> str:
-    """In a worker: member ``m`` of group ``g`` (``task = (g, m, seed)``) trained and written to a
-    checkpoint in ``tmp``; its path."""
+    """In a worker: member ``m`` of group ``g`` (``task = (g, m, seed)``, the group's ``config`` its
+    settings) trained and written to a checkpoint in ``tmp``; its path."""
     g, m, seed = task
     grp = groups[g]
+    cfg = grp.config
+    assert cfg is not None  # set by train_groups
     model = _member(one, grp.scenes, cfg, grp.job, m, seed)
     path = str(Path(tmp) / f"group{g}-member{m}.ckpt")
     model.save(path)

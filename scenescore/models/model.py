@@ -17,7 +17,7 @@ from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from .ensemble import MAX_MEMBERS, EnsembleNet, members_of
 from .info import ModelInfo
-from .moving import MovingOne
+from .moving import Mover, moving_one
 from .network import EnergyConfig, EnergyNet, parameter_count, round_flags
 from .trust import TrustReference
 
@@ -116,14 +116,15 @@ class ScoreModel(nn.Module):
 
         return fn
 
-    def moving_one(self, st: SceneTensors, o: int) -> MovingOne | None:
+    def moving_one(self, st: SceneTensors, o: int) -> Mover | None:
         """The energy of an encoded single scene's pose sets in which only object ``o`` moves, the nodes
-        it cannot reach computed once (:class:`~scenescore.models.moving.MovingOne`); None where that
-        does not apply (a dense graph, walls, an ensemble, a small scene, a GPU)."""
+        it cannot reach computed once (:func:`~scenescore.models.moving.moving_one`, each member's for an
+        ensemble); None where that does not apply (a dense graph, walls, a small scene, a GPU)."""
         with torch.no_grad():
             nodes = self.net.node_embedding(st.feats, st.sizes)
         rnd = round_flags(self.config, st.round)
-        return MovingOne.of(self.net, st.poses[0], nodes[0], st.mask[0], None if rnd is None else rnd[0], o)
+        nets = members_of(self.net)
+        return moving_one(nets, st.poses[0], nodes[0], st.mask[0], None if rnd is None else rnd[0], o)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write a safetensors checkpoint atomically (weights, network config, encoder, info)."""

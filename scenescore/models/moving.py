@@ -29,7 +29,7 @@ from ..runtime import in_parallel
 from .graph import fade, footprint_gaps, neighbour_graph, senders
 from .network import EnergyNet, MessageLayer
 
-__all__ = ["MovingOne", "PIECE_ROWS"]
+__all__ = ["MovingOne", "MovingMean", "Mover", "moving_one", "PIECE_ROWS"]
 
 PIECE_ROWS = 64  # pose sets per piece: each piece's tensors stay in cache, the pieces share the cores
 
@@ -80,10 +80,11 @@ class MovingOne:
         cls, net: Any, poses: Tensor, nodes: Tensor, mask: Tensor, rnd: Tensor | None, o: int
     ) -> MovingOne | None:
         """The evaluator for ``net`` and one scene, or None where it does not apply: a dense or absolute
-        network, one with walls, an ensemble, or a scene where some object has fewer candidates than
-        its list holds without ``o`` (a small scene, which the whole network evaluates quickly)."""
+        network, one with walls, or a scene where some object has fewer candidates than its list holds
+        without ``o`` (a small scene, which the whole network evaluates quickly); an ensemble's is
+        :func:`moving_one`'s."""
         if not isinstance(net, EnergyNet) or poses.device.type != "cpu":
-            return None  # an ensemble, or a device where reading the sets' sizes back would wait on it
+            return None  # a device where reading the sets' sizes back would wait on it
         cfg = net.cfg
         if cfg.neighbours is None or not cfg.local or cfg.walls or cfg.absolute:
             return None
@@ -215,3 +216,35 @@ class _PoseGrad(torch.autograd.Function):
         out = g.new_zeros(ctx.shape)
         out[:, ctx.o] = grad[:, None] * g
         return None, out
+
+
+class MovingMean:
+    """An ensemble's mean energy where one object moves: each member's :class:`MovingOne`, their mean
+    taken as :meth:`~scenescore.models.ensemble.EnsembleNet.forward` takes it."""
+
+    def __init__(self, movers: list[MovingOne]):
+        self.movers = movers
+
+    def __call__(self, poses: Tensor) -> Tensor | None:
+        """The mean energies ``(B,)``, or None where other objects than the moving one move."""
+        if not self.movers[0].applies(poses):
+            return None
+        return torch.stack([cast(Tensor, m(poses)) for m in self.movers]).mean(dim=0)
+
+
+Mover = MovingOne | MovingMean
+
+
+def moving_one(
+    nets: list[EnergyNet], poses: Tensor, nodes: Tensor, mask: Tensor, rnd: Tensor | None, o: int
+) -> Mover | None:
+    """The evaluator of one scene's pose sets in which only ``o`` moves, for a network (``nets`` of one)
+    or an ensemble's members (``nodes (N, members * D)`` their embeddings side by side, as
+    :meth:`~scenescore.models.ensemble.EnsembleNet.node_embedding` gives them); None where
+    :meth:`MovingOne.of` does not apply."""
+    parts = nodes.chunk(len(nets), dim=-1)
+    movers = [MovingOne.of(net, poses, part, mask, rnd, o) for net, part in zip(nets, parts, strict=True)]
+    if any(m is None for m in movers):
+        return None
+    ones = cast(list[MovingOne], movers)
+    return ones[0] if len(ones) == 1 else MovingMean(ones)

@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 from ..costs import Cost, HingeCollision, LearnedEnergy
 from ..encoders import Encoder
 from ..geometry.poses import compose_poses
-from ..learn import Run, TrainConfig, fit
+from ..learn import ONE_NETWORK, Run, TrainConfig, fit
 from ..models import ScoreModel
 from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..runtime.devices import draw, generator
@@ -346,7 +346,7 @@ class SceneScorePlacer:
     """SceneScore as a :class:`Placer`: train the energy, then Langevin placement."""
 
     name: str = "SceneScore"
-    train_config: TrainConfig = field(default_factory=TrainConfig)
+    train_config: TrainConfig = field(default_factory=lambda: TrainConfig(**ONE_NETWORK))  # the paper's
     place_options: LangevinOptions | None = None  # None: PLACE, covering the bounds (covering)
     energy_only: bool = True  # the paper's protocol: the learned energy alone
     encoder: Encoder | None = None

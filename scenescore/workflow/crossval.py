@@ -6,7 +6,9 @@ one model on all but each part and places that part's objects back with it; the 
 are pooled into one report (:func:`pooled`), which stands for the final model trained on every scene
 (:func:`~scenescore.workflow.training.train` does that, through :func:`train_and_cross_validate`,
 which trains the final model's networks and the folds' in one pool of worker processes). It costs
-``folds`` more trainings. Under six scenes each fold is one scene (leave one scene out).
+``folds`` more trainings of one network each: a fold's model is the network an ensemble's member 0
+would be (:data:`FOLD_MEMBERS`), so the figures stand for one network of the final model and leave out
+what its members' mean adds. Under six scenes each fold is one scene (leave one scene out).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ __all__ = [
     "FOLDS",
     "LEAVE_ONE_OUT_FROM",
     "MIN_SCENES",
+    "FOLD_MEMBERS",
     "fold_splits",
     "cross_validate",
     "train_and_cross_validate",
@@ -48,6 +51,9 @@ CROSS_VALIDATE_BELOW = 24
 FOLDS = 3  # the folds cross-validation makes by default: a third of the scenes held out at a time
 MIN_SCENES = 6  # fewer scenes are validated by leaving one scene out at a time (two per fold at three folds)
 LEAVE_ONE_OUT_FROM = 3  # the fewest scenes validated at all: each fold's model trains on two or more
+#: the networks of a fold's model, whatever the final model's: an ensemble's folds would multiply the
+#: trainings that little data already multiplies by the folds
+FOLD_MEMBERS = 1
 
 
 def _fits(n: int, folds: int) -> bool:
@@ -104,7 +110,7 @@ def cross_validate(
     jobs: int | None = 1,
 ) -> EvalReport:
     """Train one model per fold on the other folds' scenes (with ``cfg`` and ``seed``, as the final model
-    trains) and place the fold's objects back with it, beside nearest neighbour on the same training
+    trains, in :data:`FOLD_MEMBERS` network) and place the fold's objects back with it, beside nearest neighbour on the same training
     scenes; the pooled report of every fold. ``jobs``: worker processes the folds' trainings and
     placements run in, side by side (the report the same whatever their number; None: one per usable
     core)."""
@@ -136,7 +142,10 @@ def train_and_cross_validate(
         say(
             f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}"
         )
-        groups.append(Group(train_s, replace(fold_job, validation=held), f"fold {f + 1} of {folds}"))
+        label = f"fold {f + 1} of {folds}"
+        groups.append(
+            Group(train_s, replace(fold_job, validation=held), label, replace(cfg, members=FOLD_MEMBERS))
+        )
     models = train_groups(fit, groups, cfg, seed, jobs)
     n = training_jobs(jobs, folds, resolve_device(job.device))
     place = partial(_place_fold, seed, job.progress and n == 1)

@@ -150,7 +150,7 @@ def train(
     job = Job(encoder, progress, held, device, replace(run, keep_state=True))
     if k:  # the final model and the folds' models train side by side
         how = "leaving one scene out at a time" if k == len(scenes) else f"{k}-fold cross-validation"
-        say(f"{len(scenes)} scenes: validating by {how} ({k} more trainings)")
+        say(f"{len(scenes)} scenes: validating by {how} ({k} more trainings{_each(cfg)})")
         final, folded = train_and_cross_validate(scenes, cfg, k, job, seed=seed, say=say)
         assert final is not None
         model = final
@@ -190,6 +190,11 @@ def train(
     _save(model, out_path, out.report, record, say)
     _remove_state(run.state, cfg.runs)
     return model
+
+
+def _each(cfg: TrainConfig) -> str:
+    """What cross-validation's folds train where the final model is an ensemble (FOLD_MEMBERS)."""
+    return ", one network each" if cfg.members > 1 else ""
 
 
 def _pinned(

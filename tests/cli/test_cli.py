@@ -17,6 +17,8 @@ def trained(tmp_path_factory):
         main(
             [
                 "train",
+                "--members",
+                "1",
                 str(d / "data.jsonl"),
                 "--out",
                 str(d / "m.ckpt"),
@@ -80,7 +82,18 @@ def test_generate_train_place(trained, capsys):
 def test_train_raw_edges_has_no_edge_encoder(trained, tmp_path):
     from scenescore.models import load
 
-    args = ["train", str(trained / "data.jsonl"), "--iterations", "3", "--val", "0", "--quiet", "--force"]
+    args = [
+        "train",
+        "--members",
+        "1",
+        str(trained / "data.jsonl"),
+        "--iterations",
+        "3",
+        "--val",
+        "0",
+        "--quiet",
+        "--force",
+    ]
     assert main([*args, "--out", str(tmp_path / "raw.ckpt"), "--raw-edges"]) == 0
     assert load(tmp_path / "raw.ckpt").config.edge_encoder is None
     assert load(trained / "m.ckpt").config.edge_encoder == 32  # the default network has it
@@ -114,7 +127,9 @@ def test_user_errors_are_one_line(trained, tmp_path, capsys):
     assert main(["place", str(tmp_path / "none.ckpt"), str(d / "q.json")]) == 2
     assert "no such checkpoint" in capsys.readouterr().err
     (tmp_path / "bad.jsonl").write_text('{"objects": [{"name": "a", "category": "c", "size": [1]}]}\n')
-    assert main(["train", str(tmp_path / "bad.jsonl"), "--out", str(tmp_path / "x.ckpt")]) == 2
+    assert (
+        main(["train", "--members", "1", str(tmp_path / "bad.jsonl"), "--out", str(tmp_path / "x.ckpt")]) == 2
+    )
     err = capsys.readouterr().err
     assert "bad.jsonl:1" in err and "'a'" in err and "size" in err and "Traceback" not in err
     assert main(["generate", "kitchen", "--out", str(tmp_path / "k.jsonl")]) == 2
@@ -136,14 +151,17 @@ def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys
     (tmp_path / "afile").write_text("x")
     cases = [
         (
-            ["train", data, "--out", str(tmp_path / "n.ckpt"), "--iterations", "-5"],
+            ["train", "--members", "1", data, "--out", str(tmp_path / "n.ckpt"), "--iterations", "-5"],
             "iterations: expected an integer >= 1",
         ),
         (
-            ["train", data, "--out", str(tmp_path / "n.ckpt"), "--negatives", "0"],
+            ["train", "--members", "1", data, "--out", str(tmp_path / "n.ckpt"), "--negatives", "0"],
             "negatives: expected an integer >= 1",
         ),
-        (["train", data, "--out", str(tmp_path / "afile" / "m.ckpt")], "is a file, not a folder"),
+        (
+            ["train", "--members", "1", data, "--out", str(tmp_path / "afile" / "m.ckpt")],
+            "is a file, not a folder",
+        ),
         (["place", ckpt, q, "--particles", "0"], "particles: expected an integer >= 1"),
         (["place", ckpt, q, "--out", str(tmp_path)], "is a folder; expected a file"),
         (
@@ -228,7 +246,23 @@ def test_generate_images_and_train_on_the_folder(tmp_path, capsys):
         "scene_00001.png",
     ]
     ckpt = tmp_path / "m.ckpt"
-    assert main(["train", str(imgs), "--out", str(ckpt), "--iterations", "2", "--quiet", "--force"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--members",
+                "1",
+                str(imgs),
+                "--out",
+                str(ckpt),
+                "--iterations",
+                "2",
+                "--quiet",
+                "--force",
+            ]
+        )
+        == 0
+    )
     from scenescore.models import load
 
     assert load(ckpt).encoder.name == "image"  # a folder of images trains on the image encoder's vectors

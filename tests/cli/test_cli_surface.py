@@ -46,7 +46,17 @@ def tiny(tmp_path_factory):
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("surface")
     assert main(["generate", "dining", "--n", "6", "--out", str(d / "data.jsonl"), "--seed", "1"]) == 0
-    args = ["train", str(d / "data.jsonl"), "--out", str(d / "m.ckpt"), "--iterations", "2", "--quiet"]
+    args = [
+        "train",
+        "--members",
+        "1",
+        str(d / "data.jsonl"),
+        "--out",
+        str(d / "m.ckpt"),
+        "--iterations",
+        "2",
+        "--quiet",
+    ]
     assert main(args + ["--force", "--set", "feature_noise=0.3", "--set", "network.hidden=16"]) == 0
     scene = json.loads((d / "data.jsonl").read_text().splitlines()[0])
     (d / "scene.json").write_text(json.dumps(scene))
@@ -101,8 +111,8 @@ def test_no_option_is_a_bare_int():
 @pytest.mark.parametrize(
     "argv",
     [
-        ["train", "x.jsonl", "--out", "m.ckpt", "--iterations", "0"],
-        ["train", "x.jsonl", "--out", "m.ckpt", "--negatives", "-1"],
+        ["train", "--members", "1", "x.jsonl", "--out", "m.ckpt", "--iterations", "0"],
+        ["train", "--members", "1", "x.jsonl", "--out", "m.ckpt", "--negatives", "-1"],
         ["place", "m.ckpt", "s.json", "--particles", "0"],
         ["export", "m.ckpt", "--onnx", "m.onnx", "--opset", "5"],
         ["generate", "dining", "--n", "0"],
@@ -196,7 +206,16 @@ def test_set_reaches_the_checkpoint(tiny):
     ("key", "nearest"), [("feature_nois", "feature_noise"), ("netwrk.hiden", "network.hidden")]
 )
 def test_an_unknown_key_names_the_nearest(tiny, key, nearest, capsys):
-    argv = ["train", str(tiny / "data.jsonl"), "--out", str(tiny / "x.ckpt"), "--set", f"{key}=1"]
+    argv = [
+        "train",
+        "--members",
+        "1",
+        str(tiny / "data.jsonl"),
+        "--out",
+        str(tiny / "x.ckpt"),
+        "--set",
+        f"{key}=1",
+    ]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and repr(nearest) in err and not (tiny / "x.ckpt").exists()
@@ -223,6 +242,7 @@ def test_config_file_and_precedence(tmp_path):
     assert (cfg.iterations, cfg.negatives, cfg.network.hidden, cfg.chain.steps) == (5, 4, 12, 10)
     assert cfg.feature_noise == 0.2
     assert build_config() == TrainConfig()  # nothing given: the defaults, exactly
+    assert TrainConfig().members == 3  # an ensemble of three by default
     (tmp_path / "bad.yaml").write_text("iterations: 3\nnetwrk:\n  hidden: 8\n")
     with pytest.raises(ConfigError, match="'network'"):
         read_config(tmp_path / "bad.yaml")
@@ -232,7 +252,7 @@ def test_config_file_and_precedence(tmp_path):
 
 
 def test_settings_change_a_given_config_and_keep_the_rest():
-    base = TrainConfig(iterations=100, negatives=4, network=NetworkConfig(hidden=8))
+    base = TrainConfig(members=1, iterations=100, negatives=4, network=NetworkConfig(hidden=8))
     cfg = overridden(base, parse_overrides(["perturbed=8", "chain.steps=12", "network.layers=2"]))
     assert (cfg.iterations, cfg.negatives, cfg.perturbed) == (100, 4, 8)
     assert (cfg.network.hidden, cfg.network.layers, cfg.chain.steps) == (8, 2, 12)

@@ -18,6 +18,8 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
     ckpt = tmp_path / "m.ckpt"
     args = [
         "train",
+        "--members",
+        "1",
         str(data),
         "--out",
         str(ckpt),
@@ -62,6 +64,8 @@ def test_train_validation_equals_evaluate(tmp_path, capsys):
         main(
             [
                 "train",
+                "--members",
+                "1",
                 str(data),
                 "--out",
                 str(tmp_path / "n.ckpt"),

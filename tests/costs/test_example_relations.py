@@ -110,7 +110,7 @@ def test_bad_examples_are_refused(five):
 def test_a_model_s_checkpoint_keeps_its_examples_relations(five, tmp_path):
     from scenescore.problem.files import load_problem
 
-    model = ss.learn.fit(five, ss.learn.TrainConfig(iterations=3), seed=0, progress=False)
+    model = ss.learn.fit(five, ss.learn.TrainConfig(members=1, iterations=3), seed=0, progress=False)
     kept, direct = ExampleRelations.of_model(model), ExampleRelations(five)
     assert set(kept.tables) == set(direct.tables)
     for key, rows in direct.tables.items():  # five scenes: every pose kept, in length scales and back

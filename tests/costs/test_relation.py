@@ -123,7 +123,7 @@ def test_a_trained_left_of_prefers_left_of_to_its_mirror_in_a_new_scene():
     for their mirror images (the plate left of the cup), on average and for most pairs."""
     scenario = get("relation-left_of")
     cfg = TrainConfig(
-        iterations=100, batch_scenes=16, negatives=8, network=NetworkConfig(hidden=32, layers=2)
+        members=1, iterations=100, batch_scenes=16, negatives=8, network=NetworkConfig(hidden=32, layers=2)
     )
     model = fit(scenario.generate(64, 0), cfg, seed=0, progress=False)
     gaps = []

@@ -66,7 +66,10 @@ def test_experiment_novel_cli_writes_results(tmp_path):
 def desk_model():
     torch.manual_seed(0)
     return fit(
-        DeskScenario().generate(4, 0), TrainConfig(iterations=3, batch_scenes=4), seed=0, progress=False
+        DeskScenario().generate(4, 0),
+        TrainConfig(members=1, iterations=3, batch_scenes=4),
+        seed=0,
+        progress=False,
     )
 
 

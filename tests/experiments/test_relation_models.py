@@ -13,7 +13,7 @@ from scenescore.models.ensemble import member_seed
 from scenescore.scenarios import get
 from scenescore.scene.scene import SceneError
 
-TINY = TrainConfig(iterations=2)
+TINY = TrainConfig(members=1, iterations=2)
 
 
 def test_validation_examples_follow_the_training_examples_in_their_stream():

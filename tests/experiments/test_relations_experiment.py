@@ -136,7 +136,9 @@ def test_tiny_run_writes_rows_with_solved_fractions(tmp_path, capsys):
 
 @pytest.fixture(scope="module")
 def tiny_models():
-    return train_relations(["facing", "left_of"], 0, TrainConfig(iterations=2), examples=8, restarts=0)
+    return train_relations(
+        ["facing", "left_of"], 0, TrainConfig(members=1, iterations=2), examples=8, restarts=0
+    )
 
 
 def test_relation_models_see_a_round_subjects_heading_only_where_the_relation_reads_it(tiny_models):
@@ -177,7 +179,7 @@ def test_each_seed_and_size_is_a_task_and_a_seeds_models_are_trained_once(tmp_pa
     lines: list[str] = []
     settings = dict(
         problems=1, tries=1, pool=2, methods=["Relations (langevin>alm)"], relations=["left_of", "near"],
-        examples=8, restarts=0, config=TrainConfig(iterations=2),
+        examples=8, restarts=0, config=TrainConfig(members=1, iterations=2),
     )  # fmt: skip
     ex = Execution(progress=False, log=lines.append, sweep=Sweep(tmp_path / "tasks"))
     both = run(seeds=2, settings=RelationSettings(sizes=[2, 3], **settings), execution=ex)

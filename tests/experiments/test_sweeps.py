@@ -120,7 +120,7 @@ def test_tidy_and_zoo_records_come_back_from_json_whole():
         Task.of("tidy", scenario="desk", seed=0),
         efforts=(1.0,),
         test_scenes=1,
-        config=TrainConfig(iterations=2, batch_scenes=4),
+        config=TrainConfig(members=1, iterations=2, batch_scenes=4),
         sizes=(0.4,),
         options=TidyOptions(propose=TINY, refine_options={"max_iter": 2}),
         place_options=TINY,
@@ -129,7 +129,7 @@ def test_tidy_and_zoo_records_come_back_from_json_whole():
     back = T.TidyRun.from_dict(_json(part.to_dict()))
     assert back.cases == part.cases and back.outcomes == part.outcomes and back.seconds == part.seconds
     assert T.format_tidy(back) == T.format_tidy(part)
-    one = zoo.run_one("zoo-hall", 0, TrainConfig(iterations=3, batch_scenes=4, negatives=2))
+    one = zoo.run_one("zoo-hall", 0, TrainConfig(members=1, iterations=3, batch_scenes=4, negatives=2))
     again = zoo.PAIR_RECORD.decode(_json(zoo.PAIR_RECORD.encode(one)))
     assert again["cases"] == one["cases"] and again["seconds"] == one["seconds"]
     assert again["worst"] == one["worst"] and isinstance(again["worst"][0], MissingCase)

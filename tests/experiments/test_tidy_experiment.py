@@ -34,7 +34,7 @@ def test_run_reports_every_method_and_draws_the_chart(tmp_path):
         ("desk",),
         efforts=(1.0,),
         test_scenes=1,
-        config=TrainConfig(iterations=2, batch_scenes=4),
+        config=TrainConfig(members=1, iterations=2, batch_scenes=4),
         sizes=(0.4,),
         options=opts,
         place_options=tiny,
@@ -72,7 +72,7 @@ def test_worker_processes_give_the_same_outcomes_in_the_order_asked():
     kw = dict(
         efforts=(1.0,),
         test_scenes=1,
-        config=TrainConfig(iterations=2, batch_scenes=4),
+        config=TrainConfig(members=1, iterations=2, batch_scenes=4),
         sizes=(0.4,),
         options=TidyOptions(propose=tiny, refine_options={"max_iter": 2}),
         place_options=tiny,

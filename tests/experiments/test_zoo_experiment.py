@@ -9,7 +9,7 @@ from scenescore.experiments.execution import Execution
 from scenescore.learn import TrainConfig
 from scenescore.scene.scene import SceneError
 
-TINY = TrainConfig(iterations=3, batch_scenes=4, negatives=2)
+TINY = TrainConfig(members=1, iterations=3, batch_scenes=4, negatives=2)
 QUIET = Execution(progress=False, log=lambda s: None)
 
 

@@ -95,7 +95,7 @@ def _lc(**kw):
 def _tc(**kw):
     from scenescore.learn import TrainConfig
 
-    return TrainConfig(**kw)
+    return TrainConfig(members=1, **kw)
 
 
 def _ec(**kw):
@@ -312,7 +312,11 @@ def test_train_refuses_one_object_scenes():
     from scenescore.learn import TrainConfig, fit
 
     s = Scene.from_dict(dict(SCENE, objects=SCENE["objects"][:1]))
-    expect(lambda: fit([s, s], TrainConfig(iterations=1), progress=False), SceneError, "no example scene")
+    expect(
+        lambda: fit([s, s], TrainConfig(members=1, iterations=1), progress=False),
+        SceneError,
+        "no example scene",
+    )
 
 
 def test_with_poses_of_the_wrong_shape():

@@ -180,6 +180,8 @@ def test_train_with_a_ppm_that_contradicts_the_folder_cli(folder, tmp_path, caps
     cli_error(
         capsys,
         "train",
+        "--members",
+        "1",
         folder,
         "--out",
         tmp_path / "m.ckpt",

@@ -23,7 +23,9 @@ from scenescore.models.flags import assess
 from scenescore.models.trust import member_shares
 from scenescore.planning.placement import PLACE
 
-CFG = TrainConfig(iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+CFG = TrainConfig(
+    members=1, iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+)
 SEED = 3
 
 

@@ -44,7 +44,7 @@ def _scene(rng: np.random.Generator, holder: str) -> ss.Scene:
 def _model(holder: str) -> ss.models.ScoreModel:
     rng = np.random.default_rng(0 if holder == "tray" else 1)
     scenes = [_scene(rng, holder) for _ in range(24)]
-    return ss.learn.fit(scenes, ss.learn.TrainConfig(iterations=150), seed=0, progress=False)
+    return ss.learn.fit(scenes, ss.learn.TrainConfig(members=1, iterations=150), seed=0, progress=False)
 
 
 @pytest.fixture(scope="module")

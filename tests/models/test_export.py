@@ -36,7 +36,12 @@ def trained(tmp_path_factory):
     torch.set_num_threads(1)
     scenes = get("zoo-bedroom").generate(6, seed=0)
     cfg = TrainConfig(
-        iterations=3, batch_scenes=4, negatives=4, walls=True, network=NetworkConfig(hidden=16, layers=2)
+        members=1,
+        iterations=3,
+        batch_scenes=4,
+        negatives=4,
+        walls=True,
+        network=NetworkConfig(hidden=16, layers=2),
     )
     model = fit(scenes, cfg, seed=0, progress=False)
     d = tmp_path_factory.mktemp("export")

@@ -69,7 +69,7 @@ def test_the_spreads_scale_with_the_data():
 
 def test_training_stores_the_spreads_and_a_free_placement_says_so():
     scenes = _scenes(6)
-    model = ss.learn.fit(scenes, ss.learn.TrainConfig(iterations=5), seed=0, progress=False)
+    model = ss.learn.fit(scenes, ss.learn.TrainConfig(members=1, iterations=5), seed=0, progress=False)
     ref = model.trust
     assert ref is not None and ref.spreads is not None
     assert ref.spread("vase") is not None and ref.spread("vase").free

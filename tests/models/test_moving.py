@@ -11,7 +11,8 @@ import torch
 
 import scenescore as ss
 from scenescore.costs.energy import LearnedEnergy
-from scenescore.models.moving import PIECE_ROWS, MovingOne
+from scenescore.models.ensemble import EnsembleNet
+from scenescore.models.moving import PIECE_ROWS, MovingMean, MovingOne, moving_one
 from scenescore.models.network import EnergyConfig, EnergyNet
 
 pytestmark = pytest.mark.float_order
@@ -129,3 +130,51 @@ def test_a_learned_energy_with_one_moving_object_gives_the_models_energies():
     assert two._mover is None  # two moving objects: the whole network
     fused = LearnedEnergy.stack([term, term], [20, 20])
     torch.testing.assert_close(fused(poses), term(poses))
+
+
+def test_an_ensembles_mover_gives_its_mean_energy_and_pose_gradient():
+    nets = []
+    for seed in range(3):
+        torch.manual_seed(seed)
+        cfg = dict(feat_dim=6, length_scale=0.25, radius=3.0, neighbours=5, edge_encoder=16, layers=3)
+        nets.append(EnergyNet(EnergyConfig(**cfg)).double())
+    ens = EnsembleNet(nets)
+    poses, feats, sizes, mask, _ = _room()
+    nodes = ens.node_embedding(feats[None], sizes[None]).detach()  # the members' side by side
+    mover = moving_one(ens.nets, poses, nodes[0], mask, None, 21)
+    assert isinstance(mover, MovingMean) and len(mover.movers) == 3
+    b = 12
+    batch = poses.expand(b, -1, -1).clone()
+    batch[:, 21] = _candidates(b)
+    batch.requires_grad_(True)
+    whole = ens(batch, None, None, mask.expand(b, -1), nodes=nodes)
+    (g_whole,) = torch.autograd.grad(whole.sum(), batch)
+    mine_in = batch.detach().clone().requires_grad_(True)
+    mine = mover(mine_in)
+    assert mine is not None
+    (g_mine,) = torch.autograd.grad(mine.sum(), mine_in)
+    torch.testing.assert_close(mine, whole.detach(), rtol=0, atol=1e-12)
+    torch.testing.assert_close(g_mine[:, 21], g_whole[:, 21], rtol=0, atol=1e-12)
+    assert not g_mine[:, :21].any() and not g_mine[:, 22:].any()  # the fixed objects get none
+    other = batch.detach().clone()
+    other[:, 3, 0] += 0.1
+    assert mover(other) is None  # another object moved too: the whole ensemble
+    assert moving_one(ens.nets, poses, nodes[0], mask, None, 21) is not None
+    one = moving_one(nets[:1], poses, nodes[0, :, : nodes.shape[-1] // 3], mask, None, 21)
+    assert isinstance(one, MovingOne)  # a single network's own
+
+
+def test_a_learned_energy_of_an_ensemble_moves_one_object_through_each_member():
+    enc = ss.FootprintEncoder()
+    nets = [
+        ss.models.ScoreModel.create(enc, hidden=8, layers=2, neighbours=4, radius=3.0).net for _ in range(2)
+    ]
+    model = ss.models.ScoreModel(EnsembleNet(nets), enc)
+    scene = ss.scenarios.get("zoo-classroom").generate(1, 0)[0]
+    movable = np.array([i == 5 for i in range(len(scene.names))])
+    term = LearnedEnergy(model).bind(scene, movable)
+    assert isinstance(term, LearnedEnergy) and isinstance(term._mover, MovingMean)
+    poses = torch.as_tensor(scene.poses(), dtype=torch.float32)[None].repeat(40, 1, 1)
+    poses[:, 5, :2] += torch.randn(40, 2, generator=torch.Generator().manual_seed(0))
+    st = model.tensors([scene])
+    torch.testing.assert_close(term(poses), model.energy(poses, st, weight_grads=False), rtol=1e-5, atol=1e-5)

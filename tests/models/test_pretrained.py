@@ -91,7 +91,20 @@ def test_cli_trains_from_the_shipped_prior(tmp_path, capsys):
 
     data, out = tmp_path / "desk.jsonl", tmp_path / "tuned.ckpt"
     write_jsonl(data, get("desk").generate(5, 3))
-    args = ["train", str(data), "--out", str(out), "--init", "prior", "--iterations", "2", "--val", "0"]
+    args = [
+        "train",
+        "--members",
+        "1",
+        str(data),
+        "--out",
+        str(out),
+        "--init",
+        "prior",
+        "--iterations",
+        "2",
+        "--val",
+        "0",
+    ]
     assert main([*args, "--folds", "1", "--force", "--quiet"]) == 0
     said = capsys.readouterr().out
     assert "starting from the weights of prior" in said

@@ -49,7 +49,9 @@ def test_a_rival_is_far_and_nearly_as_cheap():
 def model():
     torch.set_num_threads(1)
     sc = ss.scenarios.get("dining")
-    cfg = TrainConfig(iterations=20, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2))
+    cfg = TrainConfig(
+        members=1, iterations=20, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2)
+    )
     return fit(sc.generate(12, 3), cfg, seed=0, progress=False), sc.generate(1, 4)[0]
 
 

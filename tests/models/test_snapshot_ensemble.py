@@ -16,7 +16,9 @@ from scenescore.learn import NetworkConfig, TrainConfig, fit
 from scenescore.models import load
 from scenescore.models.ensemble import members_of
 
-CFG = TrainConfig(iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+CFG = TrainConfig(
+    members=1, iterations=20, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+)
 SNAP = replace(CFG, members=3, ensemble="snapshots", snapshot_cycle=0.5)
 SEED = 5
 

@@ -23,7 +23,9 @@ def dining():
     torch.set_num_threads(1)
     sc = ss.scenarios.get("dining")
     tr, te = sc.generate(12, 3), sc.generate(4, 4)
-    cfg = TrainConfig(iterations=40, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2))
+    cfg = TrainConfig(
+        members=1, iterations=40, batch_scenes=6, negatives=6, network=NetworkConfig(hidden=16, layers=2)
+    )
     return fit(tr, cfg, seed=0, progress=False, validation=te), tr, te
 
 

@@ -58,7 +58,9 @@ def test_training_decides_walls_from_the_data():
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
     assert stands_against_walls(lounge) and not stands_against_walls(dining)
-    cfg = TrainConfig(iterations=2, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1))
+    cfg = TrainConfig(
+        members=1, iterations=2, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1)
+    )
     assert fit(lounge, cfg, seed=0, progress=False).config.walls
     assert not fit(dining, cfg, seed=0, progress=False).config.walls
     from dataclasses import replace
@@ -158,7 +160,9 @@ def test_training_reads_walls_as_lines_by_default_and_only_with_walls():
 
     lounge = ss.scenarios.get("zoo-lounge").generate(8, 0)
     dining = ss.scenarios.get("dining").generate(8, 0)
-    cfg = TrainConfig(iterations=1, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1))
+    cfg = TrainConfig(
+        members=1, iterations=1, batch_scenes=4, negatives=2, network=NetworkConfig(hidden=8, layers=1)
+    )
     m = fit(lounge, cfg, seed=0, progress=False)
     assert m.config.wall_lines and m.config.wall_range is None  # the defaults: lines, linear
     boxes = replace(cfg, wall_lines=False)

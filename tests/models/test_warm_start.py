@@ -17,7 +17,9 @@ from scenescore.learn.data import data_scale
 from scenescore.learn.warm_start import Start, at_unit_scale
 from scenescore.models.ensemble import members_of
 
-CFG = TrainConfig(iterations=12, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1))
+CFG = TrainConfig(
+    members=1, iterations=12, batch_scenes=4, negatives=4, network=NetworkConfig(hidden=16, layers=1)
+)
 # a run that cannot move its weights: its model is the weights it started from
 FROZEN = replace(CFG, iterations=1, lr=1e-30, lr_final=0.0, average=0.0, energy_reg=0.0)
 
@@ -110,7 +112,20 @@ def test_the_cli_trains_from_a_checkpoint_and_says_so(tmp_path, prior, jars, cap
     data, start, out = tmp_path / "jars.jsonl", tmp_path / "prior.ckpt", tmp_path / "tuned.ckpt"
     write_jsonl(data, jars)
     prior.save(start)
-    args = ["train", str(data), "--out", str(out), "--iterations", "12", "--val", "0", "--folds", "1"]
+    args = [
+        "train",
+        "--members",
+        "1",
+        str(data),
+        "--out",
+        str(out),
+        "--iterations",
+        "12",
+        "--val",
+        "0",
+        "--folds",
+        "1",
+    ]
     args += [
         "--set",
         "network.hidden=16",
@@ -124,6 +139,17 @@ def test_the_cli_trains_from_a_checkpoint_and_says_so(tmp_path, prior, jars, cap
     assert main(args) == 0
     assert load(out).info.init["source"] == str(start)
     assert f"starting from the weights of {start}" in capsys.readouterr().out
-    bad = ["train", str(data), "--out", str(tmp_path / "x.ckpt"), "--init", str(start), "--quiet", "--force"]
+    bad = [
+        "train",
+        "--members",
+        "1",
+        str(data),
+        "--out",
+        str(tmp_path / "x.ckpt"),
+        "--init",
+        str(start),
+        "--quiet",
+        "--force",
+    ]
     assert main([*bad, "--val", "0", "--folds", "1"]) == 2  # the defaults' wider network
     assert "network.hidden=16" in capsys.readouterr().err
