@@ -212,7 +212,7 @@ def test_device_errors_are_one_line_before_any_work(command, device, tmp_path, c
         pytest.skip("this machine has CUDA")
     none = str(tmp_path / "none")  # no file is read: the device is checked first
     argv = {
-        "train": ["train", "--members", "1", none + ".jsonl", "--out", str(tmp_path / "m.ckpt")],
+        "train": ["train", none + ".jsonl", "--out", str(tmp_path / "m.ckpt")],
         "place": ["place", none + ".ckpt", none + ".json"],
         "solve": ["solve", none + ".yaml"],
         "compare": ["compare", none + ".yaml"],

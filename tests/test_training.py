@@ -117,7 +117,7 @@ def test_size_noise_is_seeded_and_changes_training():
     pa, pb, pc = (next(m.net.parameters()) for m in (a, b, c))
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
     with pytest.raises(ConfigError, match="size_noise"):
-        TrainConfig(members=1, size_noise=-0.1)
+        TrainConfig(size_noise=-0.1)
 
 
 def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch):
@@ -158,7 +158,7 @@ def test_the_trained_model_is_the_moving_average_of_the_second_half(monkeypatch)
     assert torch.equal(next(again.net.parameters()), next(model.net.parameters()))
     for bad in (1.0, -0.1, float("nan")):
         with pytest.raises(ConfigError, match="average"):
-            TrainConfig(members=1, average=bad)
+            TrainConfig(average=bad)
 
 
 def test_default_network_has_the_edge_encoder_and_raw_edges_has_none():
@@ -200,7 +200,7 @@ def test_batches_of_mixed_sizes_are_evaluated_cropped_by_size():
     assert len(SizeGroups(torch.tensor([6, 6, 6, 6])).groups) == 1
     assert len(SizeGroups(st.mask.sum(dim=1), enabled=False).groups) == 1
     with pytest.raises(ConfigError, match="group_sizes"):
-        TrainConfig(members=1, group_sizes="yes")  # type: ignore[arg-type]
+        TrainConfig(group_sizes="yes")  # type: ignore[arg-type]
     assert best_cuts([2, 2, 10, 10], 4) in ([2, 4], [1, 2, 3, 4], [2, 3, 4], [1, 2, 4])
 
 
@@ -248,7 +248,7 @@ def test_reanchored_counter_examples_are_seeded_and_change_training():
     assert torch.equal(pa, pb) and not torch.equal(pa, pc)
     assert a.info.chance_loss == pytest.approx(math.log(4 + 3 + 1))
     with pytest.raises(ConfigError, match="reanchored"):
-        TrainConfig(members=1, reanchored=-1)
+        TrainConfig(reanchored=-1)
 
 
 def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
@@ -257,18 +257,16 @@ def test_reanchor_restart_starts_chains_from_one_object_on_another_anchor():
 
     model = ScoreModel.create(FootprintEncoder(), hidden=8, layers=1)
     data = model.tensors([_row(5)] * 2)
-    cfg = TrainConfig(members=1, reanchor_restart=1.0)
+    cfg = TrainConfig(reanchor_restart=1.0)
     buf = ChainBuffer(data, 6, cfg, torch.Generator().manual_seed(0))
     moved = (buf.poses != data.poses[:, None]).any(dim=-1)  # (S, K, N)
     assert torch.equal(moved, buf.movable)  # the object put on another anchor, and it alone, moves
     assert bool((moved.sum(dim=-1) == 1).all())
     assert bool((buf.age == cfg.chain.steps // 2).all())  # halfway through the schedule
-    plain = ChainBuffer(
-        data, 6, TrainConfig(members=1, reanchor_restart=0.0), torch.Generator().manual_seed(0)
-    )
+    plain = ChainBuffer(data, 6, TrainConfig(reanchor_restart=0.0), torch.Generator().manual_seed(0))
     assert bool((plain.age == 0).all()) and int(plain.movable.sum(dim=-1).max()) > 1
     with pytest.raises(ConfigError, match="reanchor_restart"):
-        TrainConfig(members=1, reanchor_restart=1.5)
+        TrainConfig(reanchor_restart=1.5)
 
 
 def test_model_cache_trains_each_model_once_and_only_where_asked(tmp_path, monkeypatch):

@@ -74,7 +74,7 @@ def test_data_that_cannot_teach_is_refused_by_name(tmp_path, lines, edit, needle
 
 def test_the_cli_refuses_before_training_and_writes_nothing(tmp_path, lines, capsys):
     p = _file(tmp_path, lines, _empty_third)
-    assert main(["train", "--members", "1", str(p), "--out", str(tmp_path / "m.ckpt"), "--quiet"]) == 2
+    assert main(["train", str(p), "--out", str(tmp_path / "m.ckpt"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{p}:3" in err[0] and not (tmp_path / "m.ckpt").exists()
 

@@ -204,13 +204,13 @@ def _zoo(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     import json
 
     from ..experiments import zoo
-    from ..learn import TrainConfig
+    from ..learn import ONE_NETWORK, TrainConfig
     from ..scenarios.zoo import ROOMS
     from ..scene.outputs import atomic_write_text
     from ..viz.plot import demo_figure
 
     names = args.scenarios.split(",") if args.scenarios else None
-    cfg = TrainConfig(iterations=150 if args.quick else 600, members=args.members or 1)
+    cfg = TrainConfig(iterations=150 if args.quick else 600, members=args.members or ONE_NETWORK["members"])
     res = zoo.run(
         seeds=args.seeds,
         scenarios=names,

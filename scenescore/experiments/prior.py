@@ -47,6 +47,6 @@ def train_prior(
     config: TrainConfig | None = None,
 ) -> ScoreModel:
     """The prior of :func:`prior_scenes` (``without`` those datasets), trained with ``config`` (default
-    the defaults) and ``seed``."""
+    the defaults in one network, ``ONE_NETWORK``) and ``seed``."""
     cfg = config or TrainConfig(**ONE_NETWORK)
     return fit(prior_scenes(without, seed), cfg, seed=seed, progress=progress, run=run)

@@ -74,9 +74,10 @@ class Edge:
 
 
 def train_config(iterations: int | None = None, quick: bool = False) -> TrainConfig:
-    """The relation models' (and the whole-scene energy's) training settings: the trainer's defaults,
-    ``iterations`` (default 600; 100 with ``quick``) and :data:`PERTURBED` counter-examples per example
-    that move one of its objects a little, which sharpen the energy at the edge of a relation's region."""
+    """The relation models' (and the whole-scene energy's) training settings: the trainer's defaults in
+    one network (``ONE_NETWORK``), ``iterations`` (default 600; 100 with ``quick``) and
+    :data:`PERTURBED` counter-examples per example that move one of its objects a little, which sharpen
+    the energy at the edge of a relation's region."""
     return TrainConfig(iterations=iterations or (100 if quick else 600), perturbed=PERTURBED, **ONE_NETWORK)
 
 

@@ -106,8 +106,10 @@ class MovingOne:
         """The energies ``(B,)`` of ``poses (B, N, 3)``, or None where other objects than ``o`` move. A
         large batch goes in pieces of :data:`PIECE_ROWS`, side by side, each forward and backward at
         once when the poses need a gradient."""
-        if not self.applies(poses):
-            return None
+        return self.energies(poses) if self.applies(poses) else None
+
+    def energies(self, poses: Tensor) -> Tensor:
+        """As :meth:`__call__`, for pose sets that :meth:`applies` accepts (not checked here)."""
         x = poses[:, self.o].to(self.poses.dtype)
         if not (torch.is_grad_enabled() and poses.requires_grad):
             pieces = [partial(self._energy_only, x[a : a + PIECE_ROWS]) for a in range(0, len(x), PIECE_ROWS)]
@@ -227,9 +229,9 @@ class MovingMean:
 
     def __call__(self, poses: Tensor) -> Tensor | None:
         """The mean energies ``(B,)``, or None where other objects than the moving one move."""
-        if not self.movers[0].applies(poses):
+        if not self.movers[0].applies(poses):  # the members share the scene: one check serves all
             return None
-        return torch.stack([cast(Tensor, m(poses)) for m in self.movers]).mean(dim=0)
+        return torch.stack([m.energies(poses) for m in self.movers]).mean(dim=0)
 
 
 Mover = MovingOne | MovingMean

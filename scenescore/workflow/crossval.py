@@ -39,6 +39,7 @@ __all__ = [
     "LEAVE_ONE_OUT_FROM",
     "MIN_SCENES",
     "FOLD_MEMBERS",
+    "fold_config",
     "fold_splits",
     "cross_validate",
     "train_and_cross_validate",
@@ -54,6 +55,11 @@ LEAVE_ONE_OUT_FROM = 3  # the fewest scenes validated at all: each fold's model 
 #: the networks of a fold's model, whatever the final model's: an ensemble's folds would multiply the
 #: trainings that little data already multiplies by the folds
 FOLD_MEMBERS = 1
+
+
+def fold_config(cfg: TrainConfig) -> TrainConfig:
+    """The settings a fold's model trains with: ``cfg`` in :data:`FOLD_MEMBERS` network."""
+    return replace(cfg, members=FOLD_MEMBERS)
 
 
 def _fits(n: int, folds: int) -> bool:
@@ -110,10 +116,10 @@ def cross_validate(
     jobs: int | None = 1,
 ) -> EvalReport:
     """Train one model per fold on the other folds' scenes (with ``cfg`` and ``seed``, as the final model
-    trains, in :data:`FOLD_MEMBERS` network) and place the fold's objects back with it, beside nearest neighbour on the same training
-    scenes; the pooled report of every fold. ``jobs``: worker processes the folds' trainings and
-    placements run in, side by side (the report the same whatever their number; None: one per usable
-    core)."""
+    trains, but one network: :func:`fold_config`) and place the fold's objects back with it, beside
+    nearest neighbour on the same training scenes; the pooled report of every fold. ``jobs``: worker
+    processes the folds' trainings and placements run in, side by side (the report the same whatever
+    their number; None: one per usable core)."""
     job = Job(encoder=encoder, progress=progress, device=device, run=Run(jobs=jobs))
     return train_and_cross_validate(scenes, cfg, folds, job, seed=seed, say=say, final=False)[1]
 
@@ -143,9 +149,7 @@ def train_and_cross_validate(
             f"cross-validation fold {f + 1} of {folds}: training on {len(train_s)} scenes, placing {len(held)}"
         )
         label = f"fold {f + 1} of {folds}"
-        groups.append(
-            Group(train_s, replace(fold_job, validation=held), label, replace(cfg, members=FOLD_MEMBERS))
-        )
+        groups.append(Group(train_s, replace(fold_job, validation=held), label, fold_config(cfg)))
     models = train_groups(fit, groups, cfg, seed, jobs)
     n = training_jobs(jobs, folds, resolve_device(job.device))
     place = partial(_place_fold, seed, job.progress and n == 1)

@@ -40,7 +40,7 @@ from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene, write_jsonl
 from ..scene.units import length_unit
 from ..viz.plot import training_figure
-from .crossval import MIN_SCENES, folds_for, train_and_cross_validate
+from .crossval import MIN_SCENES, fold_config, folds_for, train_and_cross_validate
 
 __all__ = ["NothingLearned", "Outputs", "Validation", "holdout", "train"]
 
@@ -193,8 +193,8 @@ def train(
 
 
 def _each(cfg: TrainConfig) -> str:
-    """What cross-validation's folds train where the final model is an ensemble (FOLD_MEMBERS)."""
-    return ", one network each" if cfg.members > 1 else ""
+    """What cross-validation's folds train where it is fewer networks than the final model's."""
+    return ", one network each" if fold_config(cfg).members < cfg.members else ""
 
 
 def _pinned(

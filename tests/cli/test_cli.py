@@ -127,9 +127,7 @@ def test_user_errors_are_one_line(trained, tmp_path, capsys):
     assert main(["place", str(tmp_path / "none.ckpt"), str(d / "q.json")]) == 2
     assert "no such checkpoint" in capsys.readouterr().err
     (tmp_path / "bad.jsonl").write_text('{"objects": [{"name": "a", "category": "c", "size": [1]}]}\n')
-    assert (
-        main(["train", "--members", "1", str(tmp_path / "bad.jsonl"), "--out", str(tmp_path / "x.ckpt")]) == 2
-    )
+    assert main(["train", str(tmp_path / "bad.jsonl"), "--out", str(tmp_path / "x.ckpt")]) == 2
     err = capsys.readouterr().err
     assert "bad.jsonl:1" in err and "'a'" in err and "size" in err and "Traceback" not in err
     assert main(["generate", "kitchen", "--out", str(tmp_path / "k.jsonl")]) == 2
@@ -151,15 +149,15 @@ def test_bad_settings_and_outputs_fail_before_any_work(trained, tmp_path, capsys
     (tmp_path / "afile").write_text("x")
     cases = [
         (
-            ["train", "--members", "1", data, "--out", str(tmp_path / "n.ckpt"), "--iterations", "-5"],
+            ["train", data, "--out", str(tmp_path / "n.ckpt"), "--iterations", "-5"],
             "iterations: expected an integer >= 1",
         ),
         (
-            ["train", "--members", "1", data, "--out", str(tmp_path / "n.ckpt"), "--negatives", "0"],
+            ["train", data, "--out", str(tmp_path / "n.ckpt"), "--negatives", "0"],
             "negatives: expected an integer >= 1",
         ),
         (
-            ["train", "--members", "1", data, "--out", str(tmp_path / "afile" / "m.ckpt")],
+            ["train", data, "--out", str(tmp_path / "afile" / "m.ckpt")],
             "is a file, not a folder",
         ),
         (["place", ckpt, q, "--particles", "0"], "particles: expected an integer >= 1"),

@@ -111,8 +111,8 @@ def test_no_option_is_a_bare_int():
 @pytest.mark.parametrize(
     "argv",
     [
-        ["train", "--members", "1", "x.jsonl", "--out", "m.ckpt", "--iterations", "0"],
-        ["train", "--members", "1", "x.jsonl", "--out", "m.ckpt", "--negatives", "-1"],
+        ["train", "x.jsonl", "--out", "m.ckpt", "--iterations", "0"],
+        ["train", "x.jsonl", "--out", "m.ckpt", "--negatives", "-1"],
         ["place", "m.ckpt", "s.json", "--particles", "0"],
         ["export", "m.ckpt", "--onnx", "m.onnx", "--opset", "5"],
         ["generate", "dining", "--n", "0"],
@@ -206,16 +206,7 @@ def test_set_reaches_the_checkpoint(tiny):
     ("key", "nearest"), [("feature_nois", "feature_noise"), ("netwrk.hiden", "network.hidden")]
 )
 def test_an_unknown_key_names_the_nearest(tiny, key, nearest, capsys):
-    argv = [
-        "train",
-        "--members",
-        "1",
-        str(tiny / "data.jsonl"),
-        "--out",
-        str(tiny / "x.ckpt"),
-        "--set",
-        f"{key}=1",
-    ]
+    argv = ["train", str(tiny / "data.jsonl"), "--out", str(tiny / "x.ckpt"), "--set", f"{key}=1"]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and repr(nearest) in err and not (tiny / "x.ckpt").exists()
@@ -252,7 +243,7 @@ def test_config_file_and_precedence(tmp_path):
 
 
 def test_settings_change_a_given_config_and_keep_the_rest():
-    base = TrainConfig(members=1, iterations=100, negatives=4, network=NetworkConfig(hidden=8))
+    base = TrainConfig(iterations=100, negatives=4, network=NetworkConfig(hidden=8))
     cfg = overridden(base, parse_overrides(["perturbed=8", "chain.steps=12", "network.layers=2"]))
     assert (cfg.iterations, cfg.negatives, cfg.perturbed) == (100, 4, 8)
     assert (cfg.network.hidden, cfg.network.layers, cfg.chain.steps) == (8, 2, 12)

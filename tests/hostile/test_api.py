@@ -95,7 +95,7 @@ def _lc(**kw):
 def _tc(**kw):
     from scenescore.learn import TrainConfig
 
-    return TrainConfig(members=1, **kw)
+    return TrainConfig(**kw)
 
 
 def _ec(**kw):

@@ -78,7 +78,7 @@ def test_auto_compiles_from_the_work_where_a_compiler_is_there(monkeypatch):
     monkeypatch.setattr(config, "compiler_available", lambda device_type: False)
     assert not compiles(auto, large, "cpu")  # no compiler: eager, not an error
     with pytest.raises(ss.errors.ConfigError, match="compile: expected 'auto', 'on' or 'off'"):
-        TrainConfig(members=1, compile="yes")  # type: ignore[arg-type]
+        TrainConfig(compile="yes")  # type: ignore[arg-type]
 
 
 def test_the_work_grows_with_the_objects_each_reads_and_the_iterations():

@@ -107,39 +107,33 @@ def test_config_needs_both_neighbours_and_radius():
     with pytest.raises(ConfigError, match="neighbours and radius"):
         EnergyConfig(feat_dim=4, neighbours=6)
     with pytest.raises(ConfigError, match="graph"):
-        TrainConfig(members=1, graph="sparse")  # type: ignore[arg-type]
+        TrainConfig(graph="sparse")  # type: ignore[arg-type]
 
 
 def test_training_chooses_the_graph_from_the_data_and_scales_its_radius_with_the_unit():
     room = ClassroomScenario().generate(6, 0)
     small = ClassroomScenario(desks=(5, 5)).generate(6, 0)
     assert max(len(s) for s in room) > LOCAL_FROM >= max(len(s) for s in small)
-    big = derive(TrainConfig(members=1), room).energy
+    big = derive(TrainConfig(), room).energy
     assert big.local and big.neighbours == 6 and big.radius is not None and big.radius >= 1
-    assert not derive(TrainConfig(members=1), small).energy.local
-    assert derive(TrainConfig(members=1, graph="local"), small).energy.local
-    assert not derive(TrainConfig(members=1, graph="dense"), room).energy.local
+    assert not derive(TrainConfig(), small).energy.local
+    assert derive(TrainConfig(graph="local"), small).energy.local
+    assert not derive(TrainConfig(graph="dense"), room).energy.local
     mm = [s.scaled(1000.0) for s in room]  # millimetres: the radius is in length scales, so the same
-    assert derive(TrainConfig(members=1), mm).energy.radius == pytest.approx(big.radius, rel=1e-9)
+    assert derive(TrainConfig(), mm).energy.radius == pytest.approx(big.radius, rel=1e-9)
     assert local_radius(room, big.length_scale, 6) == big.radius
     # the length scale of the objects to place (the chairs), not the fixed desks
     assert big.length_scale == pytest.approx(max(ClassroomScenario().chair) / 2)
-    assert derive(TrainConfig(members=1), small).energy.length_scale > big.length_scale
+    assert derive(TrainConfig(), small).energy.length_scale > big.length_scale
 
 
 def test_the_learning_rate_is_the_graphs_unless_set():
     room = ClassroomScenario().generate(6, 0)
     small = ClassroomScenario(desks=(5, 5)).generate(6, 0)
-    assert (
-        derive(TrainConfig(members=1), room).lr == LR_LOCAL
-        and derive(TrainConfig(members=1), small).lr == LR_DENSE
-    )
-    assert derive(TrainConfig(members=1, graph="local"), small).lr == LR_LOCAL
-    assert derive(TrainConfig(members=1, graph="dense"), room).lr == LR_DENSE
-    assert (
-        derive(TrainConfig(members=1, lr=1e-3), room).lr == 1e-3
-        and derive(TrainConfig(members=1, lr=1e-3), small).lr == 1e-3
-    )
+    assert derive(TrainConfig(), room).lr == LR_LOCAL and derive(TrainConfig(), small).lr == LR_DENSE
+    assert derive(TrainConfig(graph="local"), small).lr == LR_LOCAL
+    assert derive(TrainConfig(graph="dense"), room).lr == LR_DENSE
+    assert derive(TrainConfig(lr=1e-3), room).lr == 1e-3 and derive(TrainConfig(lr=1e-3), small).lr == 1e-3
 
 
 def test_a_local_model_round_trips_its_graph_and_refuses_onnx_export(tmp_path):
