@@ -26,9 +26,11 @@ THREADS = int(os.environ.get("SCENESCORE_TEST_THREADS") or os.environ.get("OMP_N
 @pytest.fixture(autouse=True, scope="session")
 def _own_cache(tmp_path_factory: pytest.TempPathFactory):
     """The library's user cache (compiled kernels, tidy calibrations) in a folder of the test session's
-    own: no test reads what another run left, none writes to the user's."""
+    own: no test reads what another run left, none writes to the user's. ``SCENESCORE_TEST_CACHE_DIR``
+    names a folder instead, for runs of one checkout that may share kernels (CI's second pass)."""
     old = os.environ.get("SCENESCORE_CACHE_DIR")
-    os.environ["SCENESCORE_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
+    shared = os.environ.get("SCENESCORE_TEST_CACHE_DIR")
+    os.environ["SCENESCORE_CACHE_DIR"] = shared or str(tmp_path_factory.mktemp("cache"))
     yield
     if old is None:
         os.environ.pop("SCENESCORE_CACHE_DIR", None)

@@ -24,6 +24,8 @@ def trained(tmp_path_factory):
                 str(d / "m.ckpt"),
                 "--iterations",
                 "5",
+                "--val",
+                "0",  # a model for the commands below: no cross-validation
                 "--quiet",
                 "--force",
             ]

@@ -55,6 +55,8 @@ def tiny(tmp_path_factory):
         str(d / "m.ckpt"),
         "--iterations",
         "2",
+        "--val",
+        "0",  # a model for the commands below: no cross-validation
         "--quiet",
     ]
     assert main(args + ["--force", "--set", "feature_noise=0.3", "--set", "network.hidden=16"]) == 0
