@@ -4,6 +4,7 @@ import json
 
 import pytest
 import torch
+from cli_model import train_tiny  # tests/cli, the test files' own folder
 
 from scenescore.cli import main
 
@@ -12,26 +13,7 @@ from scenescore.cli import main
 def trained(tmp_path_factory):
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("cli")
-    assert main(["generate", "dining", "--n", "6", "--out", str(d / "data.jsonl"), "--seed", "1"]) == 0
-    assert (
-        main(
-            [
-                "train",
-                "--members",
-                "1",
-                str(d / "data.jsonl"),
-                "--out",
-                str(d / "m.ckpt"),
-                "--iterations",
-                "5",
-                "--val",
-                "0",  # a model for the commands below: no cross-validation
-                "--quiet",
-                "--force",
-            ]
-        )
-        == 0
-    )
+    train_tiny(d, 5)
     return d
 
 

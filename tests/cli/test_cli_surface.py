@@ -8,6 +8,7 @@ import json
 
 import pytest
 import torch
+from cli_model import train_tiny  # tests/cli, the test files' own folder
 
 from scenescore.cli import build_parser, main
 from scenescore.cli.experiment import EXPERIMENTS, OWN_OPTIONS
@@ -45,21 +46,7 @@ def tiny(tmp_path_factory):
     """Six dining scenes and a model trained on them for two iterations."""
     torch.set_num_threads(1)
     d = tmp_path_factory.mktemp("surface")
-    assert main(["generate", "dining", "--n", "6", "--out", str(d / "data.jsonl"), "--seed", "1"]) == 0
-    args = [
-        "train",
-        "--members",
-        "1",
-        str(d / "data.jsonl"),
-        "--out",
-        str(d / "m.ckpt"),
-        "--iterations",
-        "2",
-        "--val",
-        "0",  # a model for the commands below: no cross-validation
-        "--quiet",
-    ]
-    assert main(args + ["--force", "--set", "feature_noise=0.3", "--set", "network.hidden=16"]) == 0
+    train_tiny(d, 2, "--set", "feature_noise=0.3", "--set", "network.hidden=16")
     scene = json.loads((d / "data.jsonl").read_text().splitlines()[0])
     (d / "scene.json").write_text(json.dumps(scene))
     return d
