@@ -404,3 +404,25 @@ def test_energy_in_pieces_matches_one_pass(monkeypatch, model):
     st = model.tensors([scene]).repeat(30)
     model.energy(st.poses.clone().requires_grad_(True), st).sum().backward()  # training: one pass
     assert pieces == [4] and all(p.grad is not None for p in model.net.layers.parameters())
+
+
+def test_even_pieces_keep_every_lane_busy():
+    """A batch cut for ``lanes`` threads: pieces of at most ``most`` rows (or as few as the lanes need),
+    no more rounds of pieces than ``most`` needs, and no lane (every ``lanes``-th piece, as
+    ``in_parallel`` hands them out) holding more than its share of the rows plus one per round;
+    one lane keeps ``most``."""
+    import math
+
+    from scenescore.models.chunks import even_piece
+
+    assert even_piece(256, 49, 1) == 49 and even_piece(256, 49, 0) == 49
+    for b in range(2, 300, 7):
+        for most in (1, 3, 16, 49, 128, 1000):
+            for lanes in (2, 3, 4):
+                p = even_piece(b, most, lanes)
+                sizes = [min(p, b - a) for a in range(0, b, p)]
+                rounds = math.ceil(math.ceil(b / most) / lanes)
+                share = math.ceil(b / lanes)
+                assert p <= max(most, share) and len(sizes) <= rounds * lanes
+                assert max(sum(sizes[k::lanes]) for k in range(lanes)) <= share + rounds, (b, most, lanes)
+    assert even_piece(256, 49, 2) == 43  # 6 pieces, 129 and 127 rows a lane, not 147 and 109

@@ -17,7 +17,7 @@ from ..runtime import in_parallel
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
 
-__all__ = ["ChunkedPooled", "PoseGradInPieces", "pooled_in_chunks", "rows_of"]
+__all__ = ["ChunkedPooled", "PoseGradInPieces", "even_piece", "pooled_in_chunks", "rows_of"]
 
 
 class ChunkedPooled(torch.autograd.Function):
@@ -131,6 +131,22 @@ def pooled_in_chunks(net: EnergyNet, rows: int, args: Sequence[Tensor | None]) -
 
     work = [partial(piece, a) for a in range(0, b, rows)]
     return torch.cat(in_parallel(work, _first(args).device.type == "cpu"))
+
+
+def even_piece(b: int, most: int, lanes: int) -> int:
+    """Rows per piece for a batch of ``b`` rows cut into pieces of at most ``most`` rows that ``lanes``
+    threads share: as many pieces as ``most`` needs, rounded up to a multiple of ``lanes``, and all of
+    one size but the last (one lane: ``most``). :func:`~scenescore.runtime.threads.in_parallel` hands
+    each lane every ``lanes``-th piece, so pieces of ``most`` rows and a short last one would leave a
+    lane idle while another finishes its extra piece."""
+    if lanes <= 1 or b <= 1:
+        return most
+    rounds = _ceil_div(_ceil_div(b, max(1, most)), lanes)
+    return _ceil_div(b, rounds * lanes)
+
+
+def _ceil_div(a: int, b: int) -> int:
+    return -(-a // b)
 
 
 def rows_of(args: Sequence[Tensor | None], b: int, a: int, z: int) -> list[Tensor | None]:

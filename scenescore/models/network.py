@@ -21,7 +21,7 @@ from torch import Tensor, nn
 
 from ..errors import ConfigError, check_number
 from ..runtime import check_memory, chunk_rows, return_freed_memory, usable_cores
-from .chunks import ChunkedPooled, PoseGradInPieces, pooled_in_chunks
+from .chunks import ChunkedPooled, PoseGradInPieces, even_piece, pooled_in_chunks
 from .compiled import CompiledEnergy, CompiledPoseGrad, compiled_of
 from .graph import WALLS, edge_features, neighbour_graph, senders, wall_nodes
 
@@ -376,8 +376,7 @@ class EnergyNet(nn.Module):
         per_row = n * self.reads(n)  # edges of one pose set
         piece = min(rows, max(1, CACHE_EDGES // per_row))
         shares = min(usable_cores(), b * per_row // PIECE_EDGES)  # a piece for each core, none too small
-        if shares > 1:  # enough work to share
-            piece = min(piece, -(-b // shares))
+        piece = even_piece(b, piece, shares)  # enough work to share: a multiple of ``shares`` pieces
         c = compiled_of(self)
         if c is not None and grad:  # training's compiled passes (compiled.compiling)
             if not weight_grads and poses.requires_grad:  # a chain's pose gradient
