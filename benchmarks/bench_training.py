@@ -1,7 +1,7 @@
 """Training iterations eager and compiled, beside the work each iteration does and the machine's rate.
 
     python benchmarks/bench_training.py [--scenarios dining,zoo-classroom,rooms-100] [--iterations 8]
-        [--warmup 2] [--threads 1] [--device cpu]
+        [--warmup 2] [--threads 1] [--device cpu] [--whole [--block 100]]
 
 For each scenario (48 scenes of it at the training defaults; ``rooms-100``: classrooms of 100 objects,
 half desks, half chairs, as ``benchmarks/bench_rooms.py`` builds them) two trainings from the same seed,
@@ -17,6 +17,10 @@ the machine's speed drifts alike for both:
 - **GFLOP/s** eager and compiled: that work over each median, against the machine's own rate for it,
   **mm GFLOP/s**: float32 matrix products of the network's shapes (its width, a large batch of rows),
   on the same threads. The gap to the limit is their ratio.
+
+``--whole`` checks the 600-iteration column against a whole training instead: one compiled training of
+each scenario for the training default's iterations, the seconds of each block of ``--block``
+iterations (the first block's include the compile) and their sum.
 """
 
 from __future__ import annotations
@@ -134,6 +138,25 @@ def row(name: str, args: argparse.Namespace, device: torch.device) -> str:
     )
 
 
+def whole(name: str, block: int, device: torch.device) -> str:
+    """One compiled training of ``name`` at the defaults, timed block by block: a table row."""
+    cfg = TrainConfig(compile="on")
+    tr = Training(scenes_of(name), cfg, None, 0, device)
+    blocks: list[tuple[float, int]] = []  # (seconds, iterations) of each block
+    with tr.session():
+        t = time.perf_counter()
+        for it in range(1, cfg.iterations + 1):
+            tr.step()
+            if it % block == 0 or it == cfg.iterations:
+                if device.type == "cuda":
+                    torch.cuda.synchronize()
+                now = time.perf_counter()
+                blocks.append((now - t, it - block * len(blocks) if it % block else block))
+                t = now
+    per = " | ".join(f"{sec / its:.3f}" for sec, its in blocks)
+    return f"| {name} | {cfg.iterations} | {per} | {sum(sec for sec, _ in blocks):.0f} |"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenarios", default="dining,zoo-classroom,rooms-100", help="comma-separated")
@@ -141,9 +164,25 @@ def main() -> None:
     ap.add_argument("--warmup", type=int, default=2, help="iterations first, not timed (default 2)")
     ap.add_argument("--threads", type=int, default=1, help="the thread budget (default 1)")
     ap.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    ap.add_argument(
+        "--whole", action="store_true", help="one whole compiled training of each, block by block"
+    )
+    ap.add_argument("--block", type=int, default=100, help="iterations a block with --whole (default 100)")
     args = ap.parse_args()
     device = resolve_device(args.device, "--device")
     print(f"torch {torch.__version__}, {args.threads} thread(s), {device}; times in seconds")
+    if args.whole:
+        blocks = -(-TrainConfig().iterations // args.block)
+        print(
+            "| scenario | iterations | "
+            + " | ".join(f"s/it, block {k + 1}" for k in range(blocks))
+            + " | total (s) |"
+        )
+        print("|---|---:|" + "---:|" * (blocks + 1))
+        with thread_budget(args.threads):
+            for name in args.scenarios.split(","):
+                print(whole(name.strip(), args.block, device), flush=True)
+        return
     print(
         "| scenario | objects | graph | eager s/it | compiled s/it | speedup | 600 it eager | 600 it compiled "
         "| compile (s) | GFLOP/it | calls/it | GFLOP/s eager | GFLOP/s compiled | mm GFLOP/s | of mm |"
