@@ -144,15 +144,14 @@ def whole(name: str, block: int, device: torch.device) -> str:
     tr = Training(scenes_of(name), cfg, None, 0, device)
     blocks: list[tuple[float, int]] = []  # (seconds, iterations) of each block
     with tr.session():
-        t = time.perf_counter()
-        for it in range(1, cfg.iterations + 1):
-            tr.step()
-            if it % block == 0 or it == cfg.iterations:
-                if device.type == "cuda":
-                    torch.cuda.synchronize()
-                now = time.perf_counter()
-                blocks.append((now - t, it - block * len(blocks) if it % block else block))
-                t = now
+        for first in range(0, cfg.iterations, block):
+            its = min(block, cfg.iterations - first)
+            t = time.perf_counter()
+            for _ in range(its):
+                tr.step()
+            if device.type == "cuda":
+                torch.cuda.synchronize()
+            blocks.append((time.perf_counter() - t, its))
     per = " | ".join(f"{sec / its:.3f}" for sec, its in blocks)
     return f"| {name} | {cfg.iterations} | {per} | {sum(sec for sec, _ in blocks):.0f} |"
 
