@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Literal
+from typing import Literal, cast
 
 import casadi as ca
 import numpy as np
@@ -16,7 +16,7 @@ from ..models.casadi import energy_mx
 from ..models.explain import Explanation, explain
 from ..models.flags import assess
 from ..models.model import with_walls
-from ..models.moving import Mover
+from ..models.moving import Mover, stack_movers
 from ..models.network import round_flags
 from ..models.rivals import rivals
 from ..models.trust import CAVEAT, Assessment, outside_data
@@ -130,10 +130,16 @@ class LearnedEnergy(Cost, Guide):
         if any(m is None for m in movers):
             return fn
         widths = [len(t.binding.scene) for t in es]
+        together = stack_movers(cast(list[Mover], movers), sizes) if len(set(widths)) == 1 else None
 
         def moving(poses: Tensor) -> Tensor:
-            """Each problem's one moving object through its own evaluator (all or none of them)."""
-            x, parts, a = poses.to(model.dtype), [], 0
+            """Each problem's one moving object through its own evaluator (all or none of them), the
+            problems' evaluators stacked into one where they share the network and the width."""
+            x = poses.to(model.dtype)
+            if together is not None:
+                e = together(x[:, : widths[0]])
+                return fn(poses) if e is None else e.to(poses.dtype)
+            parts, a = [], 0
             for m, size, n in zip(movers, sizes, widths):
                 e = m(x[a : a + size, :n])  # type: ignore[misc]
                 if e is None:

@@ -18,6 +18,8 @@ nodes near the object instead of all of them, at every step of a chain and for e
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 from functools import partial
 from typing import Any, cast
 
@@ -29,51 +31,111 @@ from ..runtime import in_parallel
 from .graph import fade, footprint_gaps, neighbour_graph, senders
 from .network import EnergyNet, MessageLayer
 
-__all__ = ["MovingOne", "MovingMean", "Mover", "moving_one", "PIECE_ROWS"]
+__all__ = ["MovingOne", "MovingMean", "Mover", "moving_one", "stack_movers", "PIECE_ROWS"]
 
 PIECE_ROWS = 64  # pose sets per piece: each piece's tensors stay in cache, the pieces share the cores
 
 
-class MovingOne:
-    """The energy of one scene's pose sets in which only object ``o`` moves (see the module's docstring).
+@dataclass(frozen=True)
+class _Base:
+    """The scenes without their moving objects, each computed once: per scene (the leading ``P``) its
+    poses ``(P, N, 3)``, embeddings, mask, round flags and moving object ``o (P,)``; the base graph's
+    lists ``(P, N, S)`` and each node's farthest neighbour's gap; each layer's states and what its
+    senders send ``(P, N, H)``; each node's term and their sum."""
 
-    Built by :meth:`of` from the scene's poses ``(N, 3)``, node embeddings ``(N, D)``, mask ``(N,)`` and
+    poses: Tensor
+    nodes: Tensor
+    mask: Tensor
+    rnd: Tensor | None
+    o: Tensor
+    reach: Tensor
+    base_mask: Tensor
+    index: Tensor
+    farthest: Tensor
+    states: list[Tensor]
+    sent: list[Tensor]
+    terms: Tensor
+    pooled: Tensor
+
+    @staticmethod
+    def cat(bases: Sequence[_Base]) -> _Base:
+        """The bases of several scenes of one width, side by side."""
+        out: dict[str, Any] = {}
+        for f in fields(_Base):
+            vals = [getattr(b, f.name) for b in bases]
+            if isinstance(vals[0], list):
+                out[f.name] = [torch.cat(layer) for layer in zip(*vals)]
+            else:
+                out[f.name] = None if vals[0] is None else torch.cat(vals)
+        return _Base(**out)
+
+
+def _rows(t: Tensor, pid: Tensor) -> Tensor:
+    """Per-scene ``t (P, ...)`` for each pose set of scene ``pid (B,)``: ``(B, ...)`` (one scene: a view)."""
+    return t.expand(len(pid), *t.shape[1:]) if t.shape[0] == 1 else t[pid]
+
+
+def _at(t: Tensor, pid: Tensor, idx: Tensor) -> Tensor:
+    """Per-node ``t (P, N, ...)`` at the nodes ``idx (B, M)`` of each pose set's scene ``pid (B,)``."""
+    return t[0][idx] if t.shape[0] == 1 else t[pid[:, None], idx]
+
+
+class MovingOne:
+    """The energy of pose sets in which only one object moves (see the module's docstring).
+
+    Built by :meth:`of` from a scene's poses ``(N, 3)``, node embeddings ``(N, D)``, mask ``(N,)`` and
     round flags (``(N,)`` or None); called with pose sets ``(B, N, 3)`` whose other rows are the scene's
     poses, it gives their energies ``(B,)`` (:meth:`__call__`), or None for any other pose sets (the
-    caller then evaluates the whole network). For placing and sampling: the gradient is the moving
-    object's pose's alone, the weights get none, and the base is the weights' when it was built."""
+    caller then evaluates the whole network). :meth:`stack` puts several scenes of one width side by
+    side, each for its own contiguous rows of the pose sets, so that a batch of placement problems takes
+    one call per step. For placing and sampling: the gradient is the moving object's pose's alone, the
+    weights get none, and the base is the weights' when it was built."""
 
-    def __init__(
-        self, net: EnergyNet, poses: Tensor, nodes: Tensor, mask: Tensor, rnd: Tensor | None, o: int
-    ):
+    def __init__(self, net: EnergyNet, base: _Base, pid: Tensor | None = None):
         cfg = net.cfg
         assert cfg.neighbours is not None and cfg.radius is not None  # a local graph: see of
         self.neighbours, self.radius = cfg.neighbours, cfg.radius
         self.layers = [cast(MessageLayer, layer) for layer in net.layers]
-        self.net, self.o, self.poses = net, o, poses
-        self.nodes, self.rnd = nodes, rnd
-        self.reach = net.reach(nodes)  # (N,)
-        n = poses.shape[0]
-        self.mask = mask
-        self.base_mask = mask & (torch.arange(n, device=poses.device) != o)  # the scene without o
+        self.net, self.base, self.pid = net, base, pid
+
+    @staticmethod
+    def _base(
+        net: EnergyNet, poses: Tensor, nodes: Tensor, mask: Tensor, rnd: Tensor | None, o: int
+    ) -> _Base:
+        """One scene's :class:`_Base`, ``o`` left out."""
+        cfg, n = net.cfg, poses.shape[0]
+        assert cfg.neighbours is not None and cfg.radius is not None  # a local graph: see of
+        reach = net.reach(nodes)  # (N,)
+        base_mask = mask & (torch.arange(n, device=poses.device) != o)  # the scene without o
         with torch.no_grad():
             pos = (poses[:, :2] / cfg.length_scale)[None]
-            index, pair = neighbour_graph(
-                pos, self.reach[None], self.base_mask[None], None, cfg.neighbours, cfg.radius
-            )
+            index, pair = neighbour_graph(pos, reach[None], base_mask[None], None, cfg.neighbours, cfg.radius)
+            assert index is not None  # more objects than a list holds: see of
             e = net.edges(poses[None], None if rnd is None else rnd[None], None, index)
             states = [nodes[None]]
-            assert index is not None  # more objects than a list holds: see of
-            for layer in self.layers:
+            layers = [cast(MessageLayer, layer) for layer in net.layers]
+            for layer in layers:
                 states.append(layer(states[-1], e, pair, index))
-            terms = net.node_terms(states[-1])[0]  # (N, H): each node's term
-            # what each layer's senders send, w_j of their states
-            self.sent = [layer.w_j(s[0]) for layer, s in zip(self.layers, states)]
-        self.index = index[0]  # (N, S): the base's lists, nearest first
-        self.farthest = footprint_gaps(pos, self.reach[None], index)[0, :, -1]  # (N,)
-        self.states = [s[0] for s in states]  # (N, H) at each layer
-        self.terms = terms * self.base_mask[:, None].to(terms.dtype)  # o's and padding's count none
-        self.pooled = self.terms.sum(dim=0)  # (H,)
+            terms = net.node_terms(states[-1])  # (1, N, H): each node's term
+            terms = terms * base_mask[None, :, None].to(terms.dtype)  # o's and padding's count none
+            # what each layer's senders send, w_j of their states, with a spare row for padding to land in
+            sent = [layer.w_j(s) for layer, s in zip(layers, states)]
+            sent = [torch.cat([s, s.new_zeros(1, 1, s.shape[-1])], 1) for s in sent]
+        return _Base(
+            poses=poses[None],
+            nodes=nodes[None],
+            mask=mask[None],
+            rnd=None if rnd is None else rnd[None],
+            o=torch.tensor([o], device=poses.device),
+            reach=reach[None],
+            base_mask=base_mask[None],
+            index=index,
+            farthest=footprint_gaps(pos, reach[None], index)[:, :, -1],
+            states=states,
+            sent=sent,
+            terms=terms,
+            pooled=terms.sum(dim=1),
+        )
 
     @classmethod
     def of(
@@ -90,133 +152,174 @@ class MovingOne:
             return None
         if int(mask.sum()) - 2 < cfg.neighbours:
             return None
-        return cls(net, poses, nodes, mask, rnd, o)
+        return cls(net, cls._base(net, poses, nodes, mask, rnd, o))
+
+    @classmethod
+    def stack(cls, movers: Sequence[MovingOne], sizes: Sequence[int]) -> MovingOne | None:
+        """One evaluator for several scenes' movers, mover ``k`` for the next ``sizes[k]`` pose sets; None
+        where they do not share the network, the width and whether round flags are given."""
+        first = movers[0]
+        if any(
+            m.net is not first.net
+            or m.width != first.width
+            or (m.base.rnd is None) != (first.base.rnd is None)
+            or m.pid is not None
+            for m in movers
+        ):
+            return None
+        base = _Base.cat([m.base for m in movers])
+        reps = torch.as_tensor(list(sizes), device=base.o.device)
+        return cls(first.net, base, torch.arange(len(movers), device=base.o.device).repeat_interleave(reps))
+
+    @property
+    def width(self) -> int:
+        """The number of objects of the scenes (the pose sets' ``N``)."""
+        return int(self.base.poses.shape[1])
+
+    def _pids(self, b: int) -> Tensor:
+        return torch.zeros(b, dtype=torch.long, device=self.base.o.device) if self.pid is None else self.pid
 
     def applies(self, poses: Tensor) -> bool:
-        """Whether every object of ``poses (B, N, 3)`` but ``o`` is at the scene's pose."""
-        o = self.o
-        if poses.dim() != 3 or poses.shape[1:] != self.poses.shape:
+        """Whether ``poses (B, N, 3)`` are this evaluator's: its scenes' width and rows (stacked), and
+        every object but the moving one where the scene has it."""
+        if poses.shape[1] != self.width or (self.pid is not None and poses.shape[0] != len(self.pid)):
             return False
-        fixed = self.poses.to(poses.dtype)
-        return bool(torch.equal(poses[:, :o], fixed[None, :o].expand(poses.shape[0], -1, -1))) and bool(
-            torch.equal(poses[:, o + 1 :], fixed[None, o + 1 :].expand(poses.shape[0], -1, -1))
-        )
+        base = self.base
+        if self.pid is None:  # one scene: compare the slices either side of o
+            o, fixed = int(base.o[0]), base.poses[0].to(poses.dtype)
+            return bool(torch.equal(poses[:, :o], fixed[None, :o].expand(poses.shape[0], -1, -1))) and bool(
+                torch.equal(poses[:, o + 1 :], fixed[None, o + 1 :].expand(poses.shape[0], -1, -1))
+            )
+        pid = self.pid
+        other = torch.arange(self.width, device=pid.device) != base.o[pid][:, None]  # (B, N)
+        return not bool(((poses != base.poses[pid].to(poses.dtype)).any(-1) & other).any())
 
     def __call__(self, poses: Tensor) -> Tensor | None:
-        """The energies ``(B,)`` of ``poses (B, N, 3)``, or None where other objects than ``o`` move. A
-        large batch goes in pieces of :data:`PIECE_ROWS`, side by side, each forward and backward at
-        once when the poses need a gradient."""
+        """The energies ``(B,)`` of ``poses (B, N, 3)``, or None where other objects than the moving ones
+        move. A large batch goes in pieces of :data:`PIECE_ROWS`, side by side, each forward and backward
+        at once when the poses need a gradient."""
         return self.energies(poses) if self.applies(poses) else None
+
+    def moving(self, poses: Tensor) -> Tensor:
+        """The moving objects' poses ``(B, 3)`` of ``poses (B, N, 3)``, in the base's dtype."""
+        pid = self._pids(poses.shape[0])
+        rows = torch.arange(poses.shape[0], device=pid.device)
+        return poses.detach()[rows, self.base.o[pid]].to(self.base.poses.dtype)
 
     def energies(self, poses: Tensor) -> Tensor:
         """As :meth:`__call__`, for pose sets that :meth:`applies` accepts (not checked here)."""
-        x = poses[:, self.o].to(self.poses.dtype)
         if not (torch.is_grad_enabled() and poses.requires_grad):
-            pieces = [partial(self._energy_only, x[a : a + PIECE_ROWS]) for a in range(0, len(x), PIECE_ROWS)]
+            x, pid = self.moving(poses), self._pids(poses.shape[0])
+            pieces = [
+                partial(self._energy_only, x[a : a + PIECE_ROWS], pid[a : a + PIECE_ROWS])
+                for a in range(0, len(x), PIECE_ROWS)
+            ]
             return torch.cat(in_parallel(pieces)).to(poses.dtype)
         return _PoseGrad.apply(self, poses)
 
-    def _energy_only(self, x: Tensor) -> Tensor:
+    def _energy_only(self, x: Tensor, pid: Tensor) -> Tensor:
         with torch.no_grad():  # grad mode is per thread: set in the worker's
-            return self.energy(x)
+            return self.energy(x, pid)
 
-    def energy(self, x: Tensor) -> Tensor:
-        """The energies ``(B,)`` with ``o`` at ``x (B, 3)``, differentiable in ``x``."""
-        cfg, net, o = self.net.cfg, self.net, self.o
-        b, n = x.shape[0], self.poses.shape[0]
-        poses = torch.cat(
-            [self.poses[None, :o].expand(b, -1, -1), x[:, None], self.poses[None, o + 1 :].expand(b, -1, -1)],
-            1,
-        )
+    def energy(self, x: Tensor, pid: Tensor | None = None) -> Tensor:
+        """The energies ``(B,)`` with each pose set's moving object at ``x (B, 3)``, differentiable in
+        ``x``; ``pid (B,)``: each pose set's scene (default: the first)."""
+        cfg, net, base = self.net.cfg, self.net, self.base
+        b, n = x.shape[0], self.width
+        pid = torch.zeros(b, dtype=torch.long, device=x.device) if pid is None else pid
+        o = _rows(base.o, pid)  # (B,)
+        at_o = (torch.arange(n, device=x.device) == o[:, None])[..., None]  # (B, N, 1)
+        poses = torch.where(at_o, x[:, None], _rows(base.poses, pid))
         pos = poses[..., :2] / cfg.length_scale
-        reach = self.reach[None].expand(b, n)
-        rec, lists, enters, widths = self._graph(pos, reach)
+        reach = _rows(base.reach, pid)
+        rec, lists, enters, widths = self._graph(pos, reach, pid)
         valid = rec < n  # (B, M): a node, not padding
         safe = rec.clamp(max=n - 1)
         pair = fade(footprint_gaps(pos, reach, lists, safe), self.radius) * valid[..., None].to(pos.dtype)
-        rnd = None if self.rnd is None else self.rnd[None].expand(b, n)
+        rnd = None if base.rnd is None else _rows(base.rnd, pid)
         e = net.edges(poses, rnd, None, lists, safe)
-        new, start = self.nodes[safe[:, : widths[0]]], 0  # layer 0: the embeddings, moved or not
+        new, start = _at(base.nodes, pid, safe[:, : widths[0]]), 0  # layer 0: the embeddings, moved or not
         for k, (layer, m) in enumerate(zip(self.layers, widths)):
             # the receivers' states: new for the first ``start`` (those that differed already), the
             # base's for the rest; the senders': the base's with the new ones in place
-            v_i = torch.cat([new[:, :start], self.states[k][safe[:, start:m]]], dim=1) if k else new
             if k:
-                sent = _scatter(self.sent[k], rec[:, :start], layer.w_j(new[:, :start]))
+                v_i = torch.cat([new[:, :start], _at(base.states[k], pid, safe[:, start:m])], dim=1)
+                sent = _scatter(_rows(base.sent[k], pid), rec[:, :start], layer.w_j(new[:, :start]))
             else:
-                sent = self.sent[0][None].expand(b, n, -1)
+                v_i, sent = new, _rows(base.sent[0], pid)[:, :n]
             new = layer.received(v_i, sent, e[:, :m], pair[:, :m], lists[:, :m])  # (B, m, H)
             start = m
         kept = valid.to(pos.dtype)[..., None]
-        old = self.terms[safe] * kept
-        pooled = self.pooled + (net.node_terms(new) * kept - old).sum(dim=1)
+        old = _at(base.terms, pid, safe) * kept
+        pooled = _rows(base.pooled, pid) + (net.node_terms(new) * kept - old).sum(dim=1)
         return net.readout(pooled)
 
-    def _graph(self, pos: Tensor, reach: Tensor) -> tuple[Tensor, Tensor, Tensor, list[int]]:
+    def _graph(self, pos: Tensor, reach: Tensor, pid: Tensor) -> tuple[Tensor, Tensor, Tensor, list[int]]:
         """The nodes whose states differ from the base's, ``rec (B, M)`` (padding: ``N``), ordered by the
         layer from which they differ, and the lists ``(B, M, S)`` they read; ``enters (B, N)``, the nodes
-        whose lists ``o`` enters; ``widths``: how many of ``rec``'s columns each layer recomputes."""
-        o, n, layers = self.o, pos.shape[1], len(self.layers)
+        whose lists the moving object enters; ``widths``: how many of ``rec``'s columns each layer
+        recomputes. ``pid (B,)``: each pose set's scene."""
+        base, n, layers, b = self.base, pos.shape[1], len(self.layers), pos.shape[0]
         with torch.no_grad():
-            to_o = torch.full((pos.shape[0], n, 1), o, dtype=torch.long, device=pos.device)
-            gap = footprint_gaps(pos, reach, to_o)[..., 0]  # (B, N): each node's gap to o
-            enters = self.base_mask & (gap < self.farthest)  # (B, N)
-            own = gap.masked_fill(~self.base_mask, float("inf")).topk(self.neighbours, largest=False)[1]
-            changed = enters.clone()
-            changed[:, o] = True
+            o = _rows(base.o, pid)  # (B,)
+            gap = footprint_gaps(pos, reach, o[:, None, None].expand(b, n, 1))[..., 0]  # each node's gap to o
+            base_mask = _rows(base.base_mask, pid)
+            enters = base_mask & (gap < _rows(base.farthest, pid))  # (B, N)
+            own = gap.masked_fill(~base_mask, float("inf")).topk(self.neighbours, largest=False)[1]
+            changed = enters | (torch.arange(n, device=pos.device) == o[:, None])
             first = torch.where(changed, 1, layers + 1)  # the layer from which each node differs
-            base_lists = self.index[None].expand(pos.shape[0], -1, -1)
+            base_lists, mask = _rows(base.index, pid), _rows(base.mask, pid)
             for layer in range(2, layers + 1):
                 changed = changed | senders(changed[..., None], base_lists)[..., 0].any(dim=-1)
-                changed = changed & self.mask
+                changed = changed & mask
                 first = torch.where(changed & (first > layer), layer, first)
             counts = [int((first <= layer).sum(dim=1).max()) for layer in range(1, layers + 1)]
             order = first.argsort(dim=1, stable=True)[:, : counts[-1]]
             rec = torch.where(first.gather(1, order) <= layers, order, n)
             safe = rec.clamp(max=n - 1)
-            lists = self.index[safe]  # (B, M, S)
+            lists = _at(base.index, pid, safe)  # (B, M, S)
             into = enters.gather(1, safe)[..., None] & (
                 torch.arange(lists.shape[-1], device=pos.device) == lists.shape[-1] - 1
             )
-            lists = torch.where(into, o, lists)  # o takes the farthest neighbour's place
-            lists = torch.where((safe == o)[..., None], own[:, None, :], lists)
+            lists = torch.where(into, o[:, None, None], lists)  # o takes the farthest neighbour's place
+            lists = torch.where((safe == o[:, None])[..., None], own[:, None, :], lists)
         return rec, lists, enters, counts
 
 
-def _scatter(base: Tensor, rec: Tensor, new: Tensor) -> Tensor:
-    """The base's states ``(N, H)`` for each pose set, with the rows ``rec (B, M)`` replaced by ``new (B,
-    M, H)`` (padding, ``rec == N``, lands in a spare row that nothing reads)."""
-    b, n, h = rec.shape[0], base.shape[0], base.shape[1]
-    full = torch.cat([base, base.new_zeros(1, h)])[None].expand(b, n + 1, h)
-    return full.scatter(1, rec[..., None].expand(-1, -1, h), new)[:, :n]
+def _scatter(full: Tensor, rec: Tensor, new: Tensor) -> Tensor:
+    """Each pose set's base states ``full (B, N + 1, H)`` (a spare last row) with the rows ``rec (B, M)``
+    replaced by ``new (B, M, H)`` (padding, ``rec == N``, lands in the spare row, which nothing reads)."""
+    h = full.shape[-1]
+    return full.scatter(1, rec[..., None].expand(-1, -1, h), new)[:, :-1]
 
 
 class _PoseGrad(torch.autograd.Function):
-    """:meth:`MovingOne.energy` of a batch and its gradient in ``o``'s pose, in pieces side by side (as
-    :class:`~scenescore.models.chunks.PoseGradInPieces`); the other rows get a zero gradient."""
+    """:meth:`MovingOne.energy` of a batch and its gradient in the moving objects' poses, in pieces side
+    by side (as :class:`~scenescore.models.chunks.PoseGradInPieces`); the other objects get a zero
+    gradient."""
 
     @staticmethod
     def forward(ctx: Any, mover: MovingOne, poses: Tensor) -> Tensor:
-        x = poses[:, mover.o].detach().to(mover.poses.dtype)
+        x, pid = mover.moving(poses), mover._pids(poses.shape[0])
 
         def piece(a: int) -> tuple[Tensor, Tensor]:
             with torch.enable_grad():
                 part = x[a : a + PIECE_ROWS].requires_grad_(True)
-                e = mover.energy(part)
+                e = mover.energy(part, pid[a : a + PIECE_ROWS])
                 (g,) = torch.autograd.grad(e.sum(), part)
             return e.detach(), g
 
         done = in_parallel([partial(piece, a) for a in range(0, len(x), PIECE_ROWS)])
-        ctx.o, ctx.shape = mover.o, poses.shape
-        ctx.save_for_backward(torch.cat([g for _, g in done]).to(poses.dtype))
+        ctx.shape = poses.shape
+        ctx.save_for_backward(torch.cat([g for _, g in done]).to(poses.dtype), mover.base.o[pid])
         return torch.cat([e for e, _ in done]).to(poses.dtype)
 
     @staticmethod
     @once_differentiable
     def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
-        (g,) = ctx.saved_tensors
+        g, o = ctx.saved_tensors
         out = g.new_zeros(ctx.shape)
-        out[:, ctx.o] = grad[:, None] * g
+        out[torch.arange(len(o), device=o.device), o] = grad[:, None] * g
         return None, out
 
 
@@ -233,8 +336,26 @@ class MovingMean:
             return None
         return torch.stack([m.energies(poses) for m in self.movers]).mean(dim=0)
 
+    @property
+    def width(self) -> int:
+        return self.movers[0].width
+
 
 Mover = MovingOne | MovingMean
+
+
+def stack_movers(movers: Sequence[Mover], sizes: Sequence[int]) -> Mover | None:
+    """One evaluator for several scenes' movers side by side, mover ``k`` for the next ``sizes[k]`` pose
+    sets (:meth:`MovingOne.stack`, member by member for an ensemble's); None where they do not stack."""
+    if all(isinstance(m, MovingOne) for m in movers):
+        return MovingOne.stack(cast(list[MovingOne], movers), sizes)
+    if not all(isinstance(m, MovingMean) for m in movers):
+        return None
+    means = cast(list[MovingMean], movers)
+    if len({len(m.movers) for m in means}) != 1:
+        return None
+    members = [MovingOne.stack([m.movers[i] for m in means], sizes) for i in range(len(means[0].movers))]
+    return None if any(m is None for m in members) else MovingMean(cast(list[MovingOne], members))
 
 
 def moving_one(

@@ -12,7 +12,7 @@ import torch
 import scenescore as ss
 from scenescore.costs.energy import LearnedEnergy
 from scenescore.models.ensemble import EnsembleNet
-from scenescore.models.moving import PIECE_ROWS, MovingMean, MovingOne, moving_one
+from scenescore.models.moving import PIECE_ROWS, MovingMean, MovingOne, moving_one, stack_movers
 from scenescore.models.network import EnergyConfig, EnergyNet
 
 pytestmark = pytest.mark.float_order
@@ -81,7 +81,8 @@ def test_only_the_nodes_within_reach_are_recomputed():
     assert mover is not None
     x = _candidates(32)
     pos = torch.cat([poses[None, :21].expand(32, -1, -1), x[:, None], poses[None, 22:].expand(32, -1, -1)], 1)
-    rec, _, enters, widths = mover._graph(pos[..., :2] / 0.25, mover.reach[None].expand(32, -1))
+    pid = torch.zeros(32, dtype=torch.long)
+    rec, _, enters, widths = mover._graph(pos[..., :2] / 0.25, mover.base.reach.expand(32, -1), pid)
     assert widths == sorted(widths) and widths[-1] == rec.shape[1] < int(mask.sum())
     assert bool(enters.any())  # o enters some lists, so layer one recomputes more than o
     assert widths[0] > 1
@@ -178,3 +179,52 @@ def test_a_learned_energy_of_an_ensemble_moves_one_object_through_each_member():
     poses[:, 5, :2] += torch.randn(40, 2, generator=torch.Generator().manual_seed(0))
     st = model.tensors([scene])
     torch.testing.assert_close(term(poses), model.energy(poses, st, weight_grads=False), rtol=1e-5, atol=1e-5)
+
+
+def _moved(poses: torch.Tensor, o: int, b: int, seed: int) -> torch.Tensor:
+    batch = poses.expand(b, -1, -1).clone()
+    batch[:, o] = _candidates(b, seed)
+    return batch
+
+
+@pytest.mark.parametrize("members", [1, 3])
+def test_stacked_scenes_give_each_scenes_own_energies_and_pose_gradients(members):
+    nets = [_net(layers=3) for _ in range(members)]
+    for k, net in enumerate(nets):  # members of different weights
+        torch.manual_seed(k)
+        for p in net.parameters():
+            p.data.normal_(0.0, 0.3)
+    rooms = [_room(seed=s) for s in (0, 1, 2)]
+    spots, sizes = [0, 21, 43], [PIECE_ROWS + 5, 7, 30]  # the first scene's rows span two pieces
+    movers = []
+    for (poses, feats, sizes_, mask, rnd), o in zip(rooms, spots):
+        nodes = torch.cat([n.node_embedding(feats[None], sizes_[None]).detach() for n in nets], -1)
+        movers.append(moving_one(nets, poses, nodes[0], mask, rnd, o))
+    together = stack_movers(movers, sizes)
+    assert together is not None and type(together) is type(movers[0])
+    batch = torch.cat(
+        [_moved(r[0], o, b, seed) for seed, (r, o, b) in enumerate(zip(rooms, spots, sizes))]
+    ).requires_grad_(True)
+    mine = together(batch)
+    assert mine is not None
+    (g_mine,) = torch.autograd.grad(mine.sum(), batch)
+    a = 0
+    for m, o, b in zip(movers, spots, sizes):
+        part = batch[a : a + b].detach().clone().requires_grad_(True)
+        alone = m(part)
+        (g_alone,) = torch.autograd.grad(alone.sum(), part)
+        torch.testing.assert_close(mine[a : a + b], alone.detach(), rtol=0, atol=1e-12)
+        torch.testing.assert_close(g_mine[a : a + b], g_alone, rtol=0, atol=1e-12)
+        assert not g_mine[a : a + b, :o].any() and not g_mine[a : a + b, o + 1 :].any()
+        a += b
+    with torch.no_grad():
+        torch.testing.assert_close(together(batch.detach()), mine.detach(), rtol=0, atol=1e-12)
+    other = batch.detach().clone()
+    other[-1, 3, 0] += 0.1  # another object of the last scene moved too: the whole network
+    assert together(other) is None
+    assert together(batch.detach()[:-1]) is None  # not the rows it was stacked for
+    wide = _room(n=52)
+    nodes = torch.cat([n.node_embedding(wide[1][None], wide[2][None]).detach() for n in nets], -1)
+    assert (
+        stack_movers([*movers, moving_one(nets, wide[0], nodes[0], wide[3], wide[4], 5)], [*sizes, 3]) is None
+    )
