@@ -336,10 +336,6 @@ class MovingMean:
             return None
         return torch.stack([m.energies(poses) for m in self.movers]).mean(dim=0)
 
-    @property
-    def width(self) -> int:
-        return self.movers[0].width
-
 
 Mover = MovingOne | MovingMean
 
