@@ -21,7 +21,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from functools import partial
-from typing import Any, cast
+from typing import Any, NamedTuple, cast
 
 import torch
 from torch import Tensor
@@ -33,7 +33,9 @@ from .network import EnergyNet, MessageLayer
 
 __all__ = ["MovingOne", "MovingMean", "Mover", "moving_one", "stack_movers", "PIECE_ROWS"]
 
-PIECE_ROWS = 64  # pose sets per piece: each piece's tensors stay in cache, the pieces share the cores
+#: pose sets per piece: the pieces share the cores, and a piece is large enough that its several hundred
+#: operations' dispatch does not outweigh their work, small enough that its tensors stay in cache
+PIECE_ROWS = 128
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,20 @@ def _rows(t: Tensor, pid: Tensor) -> Tensor:
 def _at(t: Tensor, pid: Tensor, idx: Tensor) -> Tensor:
     """Per-node ``t (P, N, ...)`` at the nodes ``idx (B, M)`` of each pose set's scene ``pid (B,)``."""
     return t[0][idx] if t.shape[0] == 1 else t[pid[:, None], idx]
+
+
+class _Reach(NamedTuple):
+    """What a moving object changes, per pose set: ``first (B, N)``, the layer from which each node's
+    state differs from the base's (beyond the last layer: never); ``enters (B, N)``, the nodes whose
+    lists the moving object enters; ``own (B, S)``, the moving object's own list."""
+
+    first: Tensor
+    enters: Tensor
+    own: Tensor
+
+    def take(self, rows: Tensor | slice) -> _Reach:
+        """The pose sets ``rows`` (an order, or a piece)."""
+        return _Reach(*(t[rows] for t in self))
 
 
 class MovingOne:
@@ -209,33 +225,46 @@ class MovingOne:
     def energies(self, poses: Tensor) -> Tensor:
         """As :meth:`__call__`, for pose sets that :meth:`applies` accepts (not checked here)."""
         if not (torch.is_grad_enabled() and poses.requires_grad):
-            x, pid = self.moving(poses), self._pids(poses.shape[0])
+            x, pid, reach, order = self.sorted(poses)
             pieces = [
-                partial(self._energy_only, x[a : a + PIECE_ROWS], pid[a : a + PIECE_ROWS])
+                partial(
+                    self._energy_only,
+                    x[a : a + PIECE_ROWS],
+                    pid[a : a + PIECE_ROWS],
+                    reach.take(slice(a, a + PIECE_ROWS)),
+                )
                 for a in range(0, len(x), PIECE_ROWS)
             ]
-            return torch.cat(in_parallel(pieces)).to(poses.dtype)
+            return _unsorted(torch.cat(in_parallel(pieces)), order).to(poses.dtype)
         return _PoseGrad.apply(self, poses)
 
-    def _energy_only(self, x: Tensor, pid: Tensor) -> Tensor:
-        with torch.no_grad():  # grad mode is per thread: set in the worker's
-            return self.energy(x, pid)
+    def sorted(self, poses: Tensor) -> tuple[Tensor, Tensor, _Reach, Tensor]:
+        """The moving objects' poses ``(B, 3)`` of ``poses (B, N, 3)``, their scenes ``(B,)`` and what
+        each changes (:class:`_Reach`), in the order of how many nodes each changes, and that order: a
+        piece recomputes as many nodes for every pose set as its widest one needs, so pose sets of like
+        reach go in one piece."""
+        x, pid = self.moving(poses), self._pids(poses.shape[0])
+        reach = self._reach(self._poses(x, pid)[..., :2] / self.net.cfg.length_scale, pid)
+        order = (reach.first <= len(self.layers)).sum(dim=1).argsort(stable=True)
+        return x[order], pid[order], reach.take(order), order
 
-    def energy(self, x: Tensor, pid: Tensor | None = None) -> Tensor:
+    def _energy_only(self, x: Tensor, pid: Tensor, reach: _Reach) -> Tensor:
+        with torch.no_grad():  # grad mode is per thread: set in the worker's
+            return self.energy(x, pid, reach)
+
+    def energy(self, x: Tensor, pid: Tensor | None = None, reach: _Reach | None = None) -> Tensor:
         """The energies ``(B,)`` with each pose set's moving object at ``x (B, 3)``, differentiable in
-        ``x``; ``pid (B,)``: each pose set's scene (default: the first)."""
-        cfg, net, base = self.net.cfg, self.net, self.base
-        b, n = x.shape[0], self.width
-        pid = torch.zeros(b, dtype=torch.long, device=x.device) if pid is None else pid
-        o = _rows(base.o, pid)  # (B,)
-        at_o = (torch.arange(n, device=x.device) == o[:, None])[..., None]  # (B, N, 1)
-        poses = torch.where(at_o, x[:, None], _rows(base.poses, pid))
-        pos = poses[..., :2] / cfg.length_scale
-        reach = _rows(base.reach, pid)
-        rec, lists, enters, widths = self._graph(pos, reach, pid)
+        ``x``; ``pid (B,)``: each pose set's scene (default: the first); ``reach``: what each changes,
+        where the caller has it (:meth:`sorted`)."""
+        net, base, n = self.net, self.base, self.width
+        pid = torch.zeros(x.shape[0], dtype=torch.long, device=x.device) if pid is None else pid
+        poses = self._poses(x, pid)
+        pos = poses[..., :2] / net.cfg.length_scale
+        rec, lists, widths = self._graph(self._reach(pos.detach(), pid) if reach is None else reach, pid)
         valid = rec < n  # (B, M): a node, not padding
         safe = rec.clamp(max=n - 1)
-        pair = fade(footprint_gaps(pos, reach, lists, safe), self.radius) * valid[..., None].to(pos.dtype)
+        pair = fade(footprint_gaps(pos, _rows(base.reach, pid), lists, safe), self.radius)
+        pair = pair * valid[..., None].to(pos.dtype)
         rnd = None if base.rnd is None else _rows(base.rnd, pid)
         e = net.edges(poses, rnd, None, lists, safe)
         new, start = _at(base.nodes, pid, safe[:, : widths[0]]), 0  # layer 0: the embeddings, moved or not
@@ -254,36 +283,59 @@ class MovingOne:
         pooled = _rows(base.pooled, pid) + (net.node_terms(new) * kept - old).sum(dim=1)
         return net.readout(pooled)
 
-    def _graph(self, pos: Tensor, reach: Tensor, pid: Tensor) -> tuple[Tensor, Tensor, Tensor, list[int]]:
-        """The nodes whose states differ from the base's, ``rec (B, M)`` (padding: ``N``), ordered by the
-        layer from which they differ, and the lists ``(B, M, S)`` they read; ``enters (B, N)``, the nodes
-        whose lists the moving object enters; ``widths``: how many of ``rec``'s columns each layer
-        recomputes. ``pid (B,)``: each pose set's scene."""
+    def _poses(self, x: Tensor, pid: Tensor) -> Tensor:
+        """The pose sets ``(B, N, 3)``: each scene's ``pid (B,)`` base with its moving object at ``x (B, 3)``."""
+        o = _rows(self.base.o, pid)  # (B,)
+        at_o = (torch.arange(self.width, device=x.device) == o[:, None])[..., None]  # (B, N, 1)
+        return torch.where(at_o, x[:, None], _rows(self.base.poses, pid))
+
+    def _reach(self, pos: Tensor, pid: Tensor) -> _Reach:
+        """What the moving object changes at positions ``pos (B, N, 2)`` (in length scales) of scenes
+        ``pid (B,)``: :class:`_Reach`."""
         base, n, layers, b = self.base, pos.shape[1], len(self.layers), pos.shape[0]
         with torch.no_grad():
             o = _rows(base.o, pid)  # (B,)
+            reach = _rows(base.reach, pid)
             gap = footprint_gaps(pos, reach, o[:, None, None].expand(b, n, 1))[..., 0]  # each node's gap to o
             base_mask = _rows(base.base_mask, pid)
             enters = base_mask & (gap < _rows(base.farthest, pid))  # (B, N)
             own = gap.masked_fill(~base_mask, float("inf")).topk(self.neighbours, largest=False)[1]
             changed = enters | (torch.arange(n, device=pos.device) == o[:, None])
-            first = torch.where(changed, 1, layers + 1)  # the layer from which each node differs
+            first = torch.where(changed, 1, layers + 1)
             base_lists, mask = _rows(base.index, pid), _rows(base.mask, pid)
             for layer in range(2, layers + 1):
                 changed = changed | senders(changed[..., None], base_lists)[..., 0].any(dim=-1)
                 changed = changed & mask
                 first = torch.where(changed & (first > layer), layer, first)
+        return _Reach(first, enters, own)
+
+    def _graph(self, reach: _Reach, pid: Tensor) -> tuple[Tensor, Tensor, list[int]]:
+        """The nodes whose states differ from the base's, ``rec (B, M)`` (padding: ``N``), ordered by the
+        layer from which they differ, and the lists ``(B, M, S)`` they read; ``widths``: how many of
+        ``rec``'s columns each layer recomputes. ``pid (B,)``: each pose set's scene."""
+        base, layers = self.base, len(self.layers)
+        first, enters, own = reach.first, reach.enters, reach.own
+        n = first.shape[1]
+        with torch.no_grad():
+            o = _rows(base.o, pid)
             counts = [int((first <= layer).sum(dim=1).max()) for layer in range(1, layers + 1)]
             order = first.argsort(dim=1, stable=True)[:, : counts[-1]]
             rec = torch.where(first.gather(1, order) <= layers, order, n)
             safe = rec.clamp(max=n - 1)
             lists = _at(base.index, pid, safe)  # (B, M, S)
             into = enters.gather(1, safe)[..., None] & (
-                torch.arange(lists.shape[-1], device=pos.device) == lists.shape[-1] - 1
+                torch.arange(lists.shape[-1], device=first.device) == lists.shape[-1] - 1
             )
             lists = torch.where(into, o[:, None, None], lists)  # o takes the farthest neighbour's place
             lists = torch.where((safe == o[:, None])[..., None], own[:, None, :], lists)
-        return rec, lists, enters, counts
+        return rec, lists, counts
+
+
+def _unsorted(values: Tensor, order: Tensor) -> Tensor:
+    """``values`` computed for the rows ``order`` of a batch, put back in the batch's order."""
+    out = torch.empty_like(values)
+    out[order] = values
+    return out
 
 
 def _scatter(full: Tensor, rec: Tensor, new: Tensor) -> Tensor:
@@ -300,19 +352,20 @@ class _PoseGrad(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx: Any, mover: MovingOne, poses: Tensor) -> Tensor:
-        x, pid = mover.moving(poses), mover._pids(poses.shape[0])
+        x, pid, reach, order = mover.sorted(poses)
 
         def piece(a: int) -> tuple[Tensor, Tensor]:
             with torch.enable_grad():
                 part = x[a : a + PIECE_ROWS].requires_grad_(True)
-                e = mover.energy(part, pid[a : a + PIECE_ROWS])
+                e = mover.energy(part, pid[a : a + PIECE_ROWS], reach.take(slice(a, a + PIECE_ROWS)))
                 (g,) = torch.autograd.grad(e.sum(), part)
             return e.detach(), g
 
         done = in_parallel([partial(piece, a) for a in range(0, len(x), PIECE_ROWS)])
+        g = _unsorted(torch.cat([g for _, g in done]), order)
         ctx.shape = poses.shape
-        ctx.save_for_backward(torch.cat([g for _, g in done]).to(poses.dtype), mover.base.o[pid])
-        return torch.cat([e for e, _ in done]).to(poses.dtype)
+        ctx.save_for_backward(g.to(poses.dtype), mover.base.o[mover._pids(poses.shape[0])])
+        return _unsorted(torch.cat([e for e, _ in done]), order).to(poses.dtype)
 
     @staticmethod
     @once_differentiable

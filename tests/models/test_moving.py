@@ -82,10 +82,31 @@ def test_only_the_nodes_within_reach_are_recomputed():
     x = _candidates(32)
     pos = torch.cat([poses[None, :21].expand(32, -1, -1), x[:, None], poses[None, 22:].expand(32, -1, -1)], 1)
     pid = torch.zeros(32, dtype=torch.long)
-    rec, _, enters, widths = mover._graph(pos[..., :2] / 0.25, mover.base.reach.expand(32, -1), pid)
+    reach = mover._reach(pos[..., :2] / 0.25, pid)
+    rec, _, widths = mover._graph(reach, pid)
+    enters = reach.enters
     assert widths == sorted(widths) and widths[-1] == rec.shape[1] < int(mask.sum())
     assert bool(enters.any())  # o enters some lists, so layer one recomputes more than o
     assert widths[0] > 1
+
+
+def test_pose_sets_of_like_reach_share_a_piece():
+    net = _net()
+    poses, feats, sizes, mask, _ = _room()
+    nodes = net.node_embedding(feats[None], sizes[None]).detach()
+    mover = MovingOne.of(net, poses, nodes[0], mask, None, 21)
+    assert mover is not None
+    batch = poses.expand(2 * PIECE_ROWS, -1, -1).clone()
+    batch[:, 21] = _candidates(2 * PIECE_ROWS, seed=3)
+    x, pid, reach, order = mover.sorted(batch)
+    counts = (reach.first <= 3).sum(dim=1)
+    assert bool((counts[1:] >= counts[:-1]).all()) and counts[0] < counts[-1]
+    assert torch.equal(x, batch[order, 21]) and torch.equal(order.sort().values, torch.arange(len(batch)))
+    again = mover._reach(batch[order][..., :2] / 0.25, pid)
+    assert all(torch.equal(a, b) for a, b in zip(again, reach))
+    # the first piece recomputes fewer nodes than the batch's widest pose set needs
+    first_piece = mover._graph(reach.take(slice(0, PIECE_ROWS)), pid[:PIECE_ROWS])[2]
+    assert first_piece[-1] < int(counts.max())
 
 
 def test_gradcheck_of_the_moving_objects_pose():
