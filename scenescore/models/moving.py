@@ -238,13 +238,15 @@ class MovingOne:
             return _unsorted(torch.cat(in_parallel(pieces)), order).to(poses.dtype)
         return _PoseGrad.apply(self, poses)
 
-    def sorted(self, poses: Tensor) -> tuple[Tensor, Tensor, _Reach, Tensor]:
+    def sorted(self, poses: Tensor) -> tuple[Tensor, Tensor, _Reach, Tensor | None]:
         """The moving objects' poses ``(B, 3)`` of ``poses (B, N, 3)``, their scenes ``(B,)`` and what
         each changes (:class:`_Reach`), in the order of how many nodes each changes, and that order: a
         piece recomputes as many nodes for every pose set as its widest one needs, so pose sets of like
-        reach go in one piece."""
+        reach go in one piece. A batch of one piece keeps its order (None)."""
         x, pid = self.moving(poses), self._pids(poses.shape[0])
         reach = self._reach(self._poses(x, pid)[..., :2] / self.net.cfg.length_scale, pid)
+        if len(x) <= PIECE_ROWS:
+            return x, pid, reach, None
         order = (reach.first <= len(self.layers)).sum(dim=1).argsort(stable=True)
         return x[order], pid[order], reach.take(order), order
 
@@ -331,8 +333,11 @@ class MovingOne:
         return rec, lists, counts
 
 
-def _unsorted(values: Tensor, order: Tensor) -> Tensor:
-    """``values`` computed for the rows ``order`` of a batch, put back in the batch's order."""
+def _unsorted(values: Tensor, order: Tensor | None) -> Tensor:
+    """``values`` computed for the rows ``order`` of a batch (None: in its order), put back in the
+    batch's order."""
+    if order is None:
+        return values
     out = torch.empty_like(values)
     out[order] = values
     return out

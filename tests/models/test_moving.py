@@ -40,6 +40,16 @@ def _net(**kw: object) -> EnergyNet:
     return EnergyNet(EnergyConfig(**{**cfg, **kw})).double()
 
 
+def _mover(
+    net: EnergyNet, poses: torch.Tensor, feats: torch.Tensor, sizes: torch.Tensor, mask: torch.Tensor, o: int
+) -> MovingOne:
+    """``net``'s evaluator of a room of :func:`_room`'s with object ``o`` moving (no round flags)."""
+    nodes = net.node_embedding(feats[None], sizes[None]).detach()
+    mover = MovingOne.of(net, poses, nodes[0], mask, None, o)
+    assert mover is not None
+    return mover
+
+
 def _candidates(b: int, seed: int = 1) -> torch.Tensor:
     g = torch.Generator().manual_seed(seed)
     return torch.rand(b, 3, generator=g, dtype=torch.float64) * torch.tensor([9.0, 7.0, 2 * math.pi])
@@ -76,9 +86,7 @@ def test_the_energies_and_pose_gradients_are_the_whole_networks(o, round_invaria
 def test_only_the_nodes_within_reach_are_recomputed():
     net = _net()
     poses, feats, sizes, mask, _ = _room()
-    nodes = net.node_embedding(feats[None], sizes[None]).detach()
-    mover = MovingOne.of(net, poses, nodes[0], mask, None, 21)
-    assert mover is not None
+    mover = _mover(net, poses, feats, sizes, mask, 21)
     x = _candidates(32)
     pos = torch.cat([poses[None, :21].expand(32, -1, -1), x[:, None], poses[None, 22:].expand(32, -1, -1)], 1)
     pid = torch.zeros(32, dtype=torch.long)
@@ -93,17 +101,17 @@ def test_only_the_nodes_within_reach_are_recomputed():
 def test_pose_sets_of_like_reach_share_a_piece():
     net = _net()
     poses, feats, sizes, mask, _ = _room()
-    nodes = net.node_embedding(feats[None], sizes[None]).detach()
-    mover = MovingOne.of(net, poses, nodes[0], mask, None, 21)
-    assert mover is not None
+    mover = _mover(net, poses, feats, sizes, mask, 21)
     batch = poses.expand(2 * PIECE_ROWS, -1, -1).clone()
     batch[:, 21] = _candidates(2 * PIECE_ROWS, seed=3)
     x, pid, reach, order = mover.sorted(batch)
     counts = (reach.first <= 3).sum(dim=1)
     assert bool((counts[1:] >= counts[:-1]).all()) and counts[0] < counts[-1]
+    assert order is not None  # more than one piece
     assert torch.equal(x, batch[order, 21]) and torch.equal(order.sort().values, torch.arange(len(batch)))
     again = mover._reach(batch[order][..., :2] / 0.25, pid)
     assert all(torch.equal(a, b) for a, b in zip(again, reach))
+    assert mover.sorted(batch[:PIECE_ROWS])[3] is None  # one piece: its order kept
     # the first piece recomputes fewer nodes than the batch's widest pose set needs
     first_piece = mover._graph(reach.take(slice(0, PIECE_ROWS)), pid[:PIECE_ROWS])[2]
     assert first_piece[-1] < int(counts.max())
@@ -112,9 +120,7 @@ def test_pose_sets_of_like_reach_share_a_piece():
 def test_gradcheck_of_the_moving_objects_pose():
     net = _net(layers=2)
     poses, feats, sizes, mask, rnd = _room(n=24)
-    nodes = net.node_embedding(feats[None], sizes[None]).detach()
-    mover = MovingOne.of(net, poses, nodes[0], mask, None, 9)
-    assert mover is not None
+    mover = _mover(net, poses, feats, sizes, mask, 9)
     x = _candidates(3, seed=5).requires_grad_(True)
     assert torch.autograd.gradcheck(mover.energy, (x,), eps=1e-6, atol=1e-6)
 
@@ -122,9 +128,7 @@ def test_gradcheck_of_the_moving_objects_pose():
 def test_other_pose_sets_and_other_networks_take_the_whole_network():
     poses, feats, sizes, mask, _ = _room()
     net = _net()
-    nodes = net.node_embedding(feats[None], sizes[None]).detach()
-    mover = MovingOne.of(net, poses, nodes[0], mask, None, 21)
-    assert mover is not None
+    mover = _mover(net, poses, feats, sizes, mask, 21)
     batch = poses.expand(4, -1, -1).clone()
     batch[:, 3, 0] += 0.1  # another object moved too
     assert mover(batch) is None
