@@ -17,14 +17,16 @@ from typing import Any
 from ..encoders import Encoder
 from ..evaluation.cases import MissingCase, OraclePlacer, make_cases, score_cases
 from ..learn import ONE_NETWORK, RAW_EDGES, TrainConfig
+from ..learn.config import shared_compile
 from ..planning.placement import Placer, SceneScorePlacer
+from ..runtime.devices import resolve_device
 from ..scenarios import DiningScenario
 from ..scene.scene import Scene, SceneError
 from .execution import Execution
 from .report import SeedResults, format_table
 from .tasks import Task, describe, run_tasks
 
-__all__ = ["PAPER", "fit_predict", "run", "METHODS", "EXTRA_METHODS"]
+__all__ = ["PAPER", "fit_predict", "run", "train_config", "METHODS", "EXTRA_METHODS"]
 
 # The paper's Table 1 (mean over bowl, fork, knife): position cm, orientation deg
 PAPER: dict[str, dict[str, float]] = {
@@ -35,12 +37,23 @@ PAPER: dict[str, dict[str, float]] = {
 }
 
 
+def train_config(quick: bool = False, seeds: int = 1, device: Any = None) -> TrainConfig:
+    """SceneScore's training in Table 1: one network (150 iterations with ``quick``), compiled where the
+    ``seeds`` trainings of each row's network pay for one compile together
+    (:func:`~scenescore.learn.config.shared_compile`)."""
+    tc = TrainConfig(iterations=150, **ONE_NETWORK) if quick else TrainConfig(**ONE_NETWORK)
+    return shared_compile(tc, DiningScenario().split(0)[0], seeds, resolve_device(device).type)
+
+
 def _methods(
-    scenario: DiningScenario, quick: bool, encoder: Encoder | None, device: Any = None, cache: Any = None
+    scenario: DiningScenario,
+    quick: bool,
+    tc: TrainConfig,
+    encoder: Encoder | None,
+    device: Any = None,
+    cache: Any = None,
 ) -> dict[str, Callable[[], Placer]]:
     from ..evaluation.baselines import NearestNeighbour, NeatNet, NeatNetConfig
-
-    tc = TrainConfig(iterations=150, **ONE_NETWORK) if quick else TrainConfig(**ONE_NETWORK)
 
     def scenescore(name: str, train: Mapping[str, Any] | None = None, **network: Any) -> SceneScorePlacer:
         net = replace(tc.network, **network)
@@ -100,7 +113,8 @@ def run(
     ``scenes_fn`` (a function of this process) they run here, in turn; its ``sweep`` keeps each method
     and seed's record, to resume from (:mod:`scenescore.experiments.tasks`)."""
     ex = execution or Execution()
-    table = _methods(DiningScenario(), quick, encoder, ex.device)
+    tc = train_config(quick, seeds, ex.device)
+    table = _methods(DiningScenario(), quick, tc, encoder, ex.device)
     chosen = methods or METHODS
     unknown = [m for m in chosen if m not in table]
     if unknown:
@@ -108,6 +122,7 @@ def run(
     one = partial(
         _one,
         quick=quick,
+        tc=tc,
         progress=ex.progress and (ex.jobs == 1 or scenes_fn is not None),
         scenes_fn=scenes_fn,
         encoder=encoder,
@@ -118,6 +133,7 @@ def run(
     # every setting a record depends on beyond its method and seed
     config = {
         "quick": quick,
+        "compile": tc.compile,
         "graphs": describe(scenes_fn),
         "encoder": describe(encoder),
         "device": str(ex.device),
@@ -136,6 +152,7 @@ def _one(
     task: Task,
     log: Callable[[str], None],
     quick: bool,
+    tc: TrainConfig,
     progress: bool,
     scenes_fn: Callable[[list[Scene], list[Scene]], tuple[list[Scene], list[Scene]]] | None,
     encoder: Encoder | None,
@@ -155,10 +172,10 @@ def _one(
         train_s, test_s = graphs[seed]
     cases = make_cases(test_s, scenario.missing)
     # the truth is always the simulator's pose, whatever graph the method sees
-    for c, tc in zip(cases, truth_cases):
-        c.truth = tc.truth
+    for c, t in zip(cases, truth_cases):
+        c.truth = t.truth
     pred, dt = fit_predict(
-        _methods(scenario, quick, encoder, device, cache)[m], train_s, cases, seed, progress
+        _methods(scenario, quick, tc, encoder, device, cache)[m], train_s, cases, seed, progress
     )
     figs = score_cases(cases, pred, scenario.symmetric)
     log(

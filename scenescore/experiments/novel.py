@@ -24,7 +24,9 @@ import numpy as np
 from ..encoders import Encoder
 from ..evaluation.cases import MissingCase, OraclePlacer, make_cases
 from ..learn import ONE_NETWORK, TrainConfig
+from ..learn.config import shared_compile
 from ..planning.placement import Placer, SceneScorePlacer
+from ..runtime.devices import resolve_device
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene.scene import Scene, SceneError
@@ -58,15 +60,30 @@ def scenescore_row(encoder: Encoder) -> str:
     return f"SceneScore ({encoder.name})"
 
 
+def train_config(
+    quick: bool = False,
+    trainings: int = 1,
+    device: Any = None,
+    rule: str = RULES[0],
+    scenario: dict[str, Any] | None = None,
+) -> TrainConfig:
+    """SceneScore's training in Table 2: one network (60 iterations with ``quick``), compiled where the
+    ``trainings`` of each row's network (its seeds and rules) pay for one compile together
+    (:func:`~scenescore.learn.config.shared_compile`), judged on ``rule``'s training scenes
+    (``scenario``: the scenario's other options)."""
+    tc = TrainConfig(iterations=60, **ONE_NETWORK) if quick else TrainConfig(**ONE_NETWORK)
+    scenes = OrderingScenario(rule=rule, **(scenario or {})).split(0)[0]
+    return shared_compile(tc, scenes, trainings, resolve_device(device).type)
+
+
 def _methods(
     scenario: OrderingScenario,
     quick: bool,
+    tc: TrainConfig,
     encoders: Sequence[Encoder] | None = None,
     device: Any = None,
     cache: Any = None,
 ) -> dict[str, Callable[[], Placer]]:
-    tc = TrainConfig(iterations=60, **ONE_NETWORK) if quick else TrainConfig(**ONE_NETWORK)
-
     def neatnet_r() -> Placer:
         from ..evaluation.baselines import NeatNetR
 
@@ -193,8 +210,9 @@ def run(
     if scenes_fn is not None and not encoders:
         raise SceneError("novel: scenes_fn needs encoders (the graphs are built with each)")
     chosen = _chosen(methods or default_methods(ex.log), encoders)
+    tc = train_config(quick, seeds * len(rules), ex.device, rules[0], scenario)
     for rule in rules:
-        table = _methods(OrderingScenario(rule=rule, **scenario), quick, encoders, ex.device)
+        table = _methods(OrderingScenario(rule=rule, **scenario), quick, tc, encoders, ex.device)
         unknown = [m for m in chosen if m not in table]
         if unknown:
             raise SceneError(f"unknown method(s) {unknown}; choose from {list(table)}")
@@ -202,6 +220,7 @@ def run(
     one = partial(
         _one,
         quick=quick,
+        tc=tc,
         progress=ex.progress and (ex.jobs == 1 or here),
         n_test=n_test,
         encoders=encoders,
@@ -213,6 +232,7 @@ def run(
     )
     config = {
         "quick": quick,
+        "compile": tc.compile,
         "n_test": n_test,
         "encoders": [describe(e) for e in encoders or []],
         "graphs": describe(scenes_fn),
@@ -242,6 +262,7 @@ def _one(
     task: Task,
     log: Callable[[str], None],
     quick: bool,
+    tc: TrainConfig,
     progress: bool,
     n_test: int | None,
     encoders: Sequence[Encoder] | None,
@@ -267,7 +288,9 @@ def _one(
                 scenes_fn(train_s, test_s, encoders[k]), cases, sc.missing
             )
         train_m, cases_m = graphs[(seed, rule, k)]
-    pred, dt = fit_predict(_methods(sc, quick, encoders, device, cache)[m], train_m, cases_m, seed, progress)
+    pred, dt = fit_predict(
+        _methods(sc, quick, tc, encoders, device, cache)[m], train_m, cases_m, seed, progress
+    )
     err = position_error_cm(cases_m, pred)
     log(f"seed {seed} {rule:13s} {m:12s} {err:6.2f} cm  ({dt:.0f} s)")
     return err, dt

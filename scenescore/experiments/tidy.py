@@ -30,9 +30,11 @@ import numpy as np
 
 from ..costs import Displacement
 from ..learn import ONE_NETWORK, Run, TrainConfig, fit
+from ..learn.config import shared_compile
 from ..models import ScoreModel
 from ..planning.placement import place_many
 from ..planning.tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
+from ..runtime.devices import resolve_device
 from ..scenarios import get
 from ..scene.scene import Scene, SceneError
 from ..solvers.langevin import LangevinOptions
@@ -213,6 +215,7 @@ def run(
         sizes=tuple(sizes),
         options=options,
         place_options=place_options,
+        trainings=len(seeds),
         # what a worker needs of the execution: the log is its own, the tasks' records are kept here
         execution=Execution(progress=ex.progress and ex.jobs == 1, device=ex.device, cache=ex.cache),
     )
@@ -220,6 +223,7 @@ def run(
         "efforts": list(efforts),
         "test_scenes": test_scenes,
         "training": config,
+        "trainings": len(seeds),  # compiled together where that pays
         "sizes": list(sizes),
         "options": options,
         "place_options": place_options,
@@ -247,11 +251,14 @@ def _scenario(
     sizes: tuple[float, ...],
     options: TidyOptions | None,
     place_options: LangevinOptions | None,
+    trainings: int,
     execution: Execution,
 ) -> TidyRun:
     """:func:`run_scenario` as a task of :func:`run`, its lines to the task's ``log``."""
     ex = replace(execution, log=log)
-    return run_scenario(unit, efforts, test_scenes, config, sizes, options, place_options, execution=ex)
+    return run_scenario(
+        unit, efforts, test_scenes, config, sizes, options, place_options, trainings, execution=ex
+    )
 
 
 def run_scenario(
@@ -262,10 +269,13 @@ def run_scenario(
     sizes: tuple[float, ...],
     options: TidyOptions | None,
     place_options: LangevinOptions | None,
+    trainings: int = 1,
     *,
     execution: Execution | None = None,
 ) -> TidyRun:
-    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds.
+    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds
+    (``trainings``: how many trainings of the scenario's network the run makes, its seeds, which compile
+    together where that pays: :func:`~scenescore.learn.config.shared_compile`).
     ``execution``: where and how (default ``Execution(progress=False)``; its ``jobs`` and ``sweep`` are
     :func:`run`'s, unused here)."""
     ex = execution or Execution(progress=False)
@@ -278,9 +288,12 @@ def run_scenario(
     sc = get(name)
     t0 = time.perf_counter()
     train_s, test_s = sc.split(seed)
+    cfg = shared_compile(
+        config or TrainConfig(**ONE_NETWORK), train_s, trainings, resolve_device(ex.device).type
+    )
     model = fit(
         train_s,
-        config or TrainConfig(**ONE_NETWORK),
+        cfg,
         seed=seed,
         progress=ex.progress,
         device=ex.device,

@@ -27,10 +27,12 @@ from tqdm.auto import tqdm
 
 from ..evaluation.cases import MissingCase
 from ..learn import ONE_NETWORK, Run, TrainConfig, fit, split_validation
+from ..learn.config import shared_compile
 from ..models import ScoreModel
 from ..models.layout import BOUND_TOL
 from ..models.trust import energy_per_object
 from ..planning.placement import covering, place_many
+from ..runtime.devices import resolve_device
 from ..scenarios import get
 from ..scenarios.zoo import ROOMS, ZOO
 from ..scenarios.zoo.common import Pose
@@ -192,6 +194,7 @@ def run_one(
     val: float = 0.0,
     cache: Any = None,
     train_scenes: int | None = None,
+    trainings: int = 1,
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
     the learned energy alone, the paper's protocol; ``place``: placement options instead of
@@ -204,9 +207,12 @@ def run_one(
     t0 = time.perf_counter()
     sc = get(name)
     train_s, held, test_s = training_split(name, seed, val, train_scenes)
+    cfg = shared_compile(
+        config or TrainConfig(**ONE_NETWORK), train_s, trainings, resolve_device(device).type
+    )
     model = fit(
         train_s,
-        config or TrainConfig(**ONE_NETWORK),
+        cfg,
         seed=seed,
         progress=progress,
         device=device,
@@ -243,10 +249,13 @@ def _pair(
     val: float,
     cache: Any,
     train_scenes: int | None = None,
+    trainings: int = 1,
 ) -> dict[str, Any]:
     """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done."""
     name, seed = task.scenario, task.seed
-    one = run_one(name, seed, config, progress, energy_only, device, place, val, cache, train_scenes)
+    one = run_one(
+        name, seed, config, progress, energy_only, device, place, val, cache, train_scenes, trainings
+    )
     got = one["cases"]
     log(
         f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
@@ -290,6 +299,7 @@ def run(
         "place": place,
         "val": val,
         "train_scenes": train_scenes,
+        "trainings": seeds,  # compiled together where that pays
     }  # every setting a pair's record depends on beyond its scenario and seed
     tasks = [
         Task.of("zoo", scenario=name, seed=seed, config=settings) for name in chosen for seed in range(seeds)
@@ -306,6 +316,7 @@ def run(
         val=val,
         cache=ex.cache,
         train_scenes=train_scenes,
+        trainings=seeds,
     )
     bar = "zoo" if ex.progress else None
     records = run_tasks(pair, tasks, ex.jobs, ex.log, bar, ex.sweep, PAIR_RECORD)

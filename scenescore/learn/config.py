@@ -32,6 +32,7 @@ __all__ = [
     "Compile",
     "COMPILE_FROM",
     "compiles",
+    "shared_compile",
     "training_work",
 ]
 
@@ -337,6 +338,23 @@ def compiles(cfg: TrainConfig, d: Derived, device_type: str) -> bool:
     if cfg.compile != "auto":
         return cfg.compile == "on"
     return d.work >= COMPILE_FROM and compiler_available(device_type)
+
+
+def shared_compile(
+    cfg: TrainConfig, scenes: Sequence[Scene], trainings: int, device_type: str
+) -> TrainConfig:
+    """``cfg`` for one of ``trainings`` trainings of its network on data like ``scenes`` (an experiment's
+    seeds, or its seeds and rules), with ``compile="auto"`` settled over their work together: the first
+    of them to compile keeps the kernels in the cache folder, where the others (in any worker process)
+    find them, so one cold compile serves them all. ``"on"`` where their work reaches
+    :data:`COMPILE_FROM` and a compiler is installed; otherwise ``cfg`` as it is, each training then
+    deciding on its own work. Settled once for all of them, so that every one of them, and the model
+    cache's key, names the same choice."""
+    if cfg.compile != "auto" or trainings < 1:
+        return cfg
+    if derive(cfg, scenes).work * trainings < COMPILE_FROM or not compiler_available(device_type):
+        return cfg
+    return replace(cfg, compile="on")
 
 
 def compiler_available(device_type: str) -> bool:

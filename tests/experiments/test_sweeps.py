@@ -99,6 +99,21 @@ def test_a_damaged_record_is_computed_again_with_a_warning_naming_it(tmp_path, c
     assert "Traceback" not in got.err
 
 
+def test_a_record_names_whether_its_seeds_networks_compile_together(tmp_path, calls, capsys, monkeypatch):
+    from scenescore.learn import config
+
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: True)
+    assert main(ARGS + ["--out", str(tmp_path)]) == 0  # three seeds' dining networks: compiled
+    calls.clear()
+    one_seed = [a if a != "3" else "1" for a in ARGS]
+    assert main(one_seed + ["--out", str(tmp_path)]) == 0  # one network alone: eager, another record
+    assert calls == [0, 0] and "reused 0 of 2 tasks" in capsys.readouterr().out
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: False)
+    calls.clear()
+    assert main(ARGS + ["--out", str(tmp_path)]) == 0  # no compiler: eager whatever the seeds
+    assert calls == [1, 1, 2, 2] and "reused 2 of 6 tasks" in capsys.readouterr().out
+
+
 def test_records_of_other_settings_are_not_reused(tmp_path, calls, capsys):
     assert main(ARGS + ["--out", str(tmp_path)]) == 0
     calls.clear()

@@ -11,7 +11,7 @@ import torch
 
 import scenescore as ss
 from scenescore.learn import NetworkConfig, TrainConfig
-from scenescore.learn.config import COMPILE_FROM, compiles, derive
+from scenescore.learn.config import COMPILE_FROM, compiles, derive, shared_compile
 
 TINY = TrainConfig(
     members=1,
@@ -79,6 +79,41 @@ def test_auto_compiles_from_the_work_where_a_compiler_is_there(monkeypatch):
     assert not compiles(auto, large, "cpu")  # no compiler: eager, not an error
     with pytest.raises(ss.errors.ConfigError, match="compile: expected 'auto', 'on' or 'off'"):
         TrainConfig(compile="yes")  # type: ignore[arg-type]
+
+
+def test_an_experiments_trainings_compile_together_where_their_work_pays(monkeypatch):
+    from scenescore.learn import config
+
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: True)
+    scenes = ss.scenarios.get("dining").generate(4, 0)
+    work = derive(TINY, scenes).work
+    enough = int(COMPILE_FROM // work) + 1  # trainings whose work together reaches COMPILE_FROM
+    auto = replace(TINY, compile="auto")
+    assert shared_compile(auto, scenes, enough, "cpu").compile == "on"
+    assert shared_compile(auto, scenes, enough - 1, "cpu") == auto  # each then decides on its own work
+    assert shared_compile(replace(TINY, compile="off"), scenes, enough, "cpu").compile == "off"
+    # the one change is the choice: the cache's key then names it, and nothing else moves
+    on = shared_compile(auto, scenes, enough, "cpu")
+    assert replace(on, compile="auto") == auto
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: False)
+    assert shared_compile(auto, scenes, enough, "cpu") == auto  # no compiler: eager, as ever
+
+
+def test_the_paper_experiments_compile_their_seeds_networks_together(monkeypatch):
+    from scenescore.experiments import missing, novel
+    from scenescore.learn import config
+
+    monkeypatch.setattr(config, "compiler_available", lambda device_type: True)
+    # a dining network is half the work that pays for a compile: three seeds pay for one, one does not
+    assert missing.train_config(seeds=3).compile == "on"
+    assert missing.train_config(seeds=1).compile == "auto"
+    assert missing.train_config(quick=True, seeds=3).compile == "auto"  # a quick run stays eager
+    assert novel.train_config(trainings=9).compile == "on"
+    assert novel.train_config(quick=True, trainings=9).compile == "auto"
+    # tidy's dining network is Table 1's, so that `experiment all` trains it once for both
+    dining = ss.scenarios.get("dining").split(0)[0]
+    shared = shared_compile(TrainConfig(members=1), dining, 3, "cpu")
+    assert shared == missing.train_config(seeds=3)
 
 
 def test_the_work_grows_with_the_objects_each_reads_and_the_iterations():
