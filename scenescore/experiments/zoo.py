@@ -194,7 +194,6 @@ def run_one(
     val: float = 0.0,
     cache: Any = None,
     train_scenes: int | None = None,
-    trainings: int = 1,
 ) -> dict[str, Any]:
     """One scenario and seed: train, place every test case back as ``place`` does (``energy_only``: by
     the learned energy alone, the paper's protocol; ``place``: placement options instead of
@@ -207,12 +206,9 @@ def run_one(
     t0 = time.perf_counter()
     sc = get(name)
     train_s, held, test_s = training_split(name, seed, val, train_scenes)
-    cfg = shared_compile(
-        config or TrainConfig(**ONE_NETWORK), train_s, trainings, resolve_device(device).type
-    )
     model = fit(
         train_s,
-        cfg,
+        config or TrainConfig(**ONE_NETWORK),
         seed=seed,
         progress=progress,
         device=device,
@@ -251,11 +247,13 @@ def _pair(
     train_scenes: int | None = None,
     trainings: int = 1,
 ) -> dict[str, Any]:
-    """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done."""
+    """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done; the pair's network
+    compiles with the run's other ``trainings`` of the scenario where that pays
+    (:func:`~scenescore.learn.config.shared_compile`)."""
     name, seed = task.scenario, task.seed
-    one = run_one(
-        name, seed, config, progress, energy_only, device, place, val, cache, train_scenes, trainings
-    )
+    scenes = training_split(name, seed, val, train_scenes)[0]
+    cfg = shared_compile(config or TrainConfig(**ONE_NETWORK), scenes, trainings, resolve_device(device).type)
+    one = run_one(name, seed, cfg, progress, energy_only, device, place, val, cache, train_scenes)
     got = one["cases"]
     log(
         f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
