@@ -136,12 +136,14 @@ def test_default_jobs_share_a_cuda_device_as_its_free_memory_allows(monkeypatch,
 
 def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tmp_path):
     from scenescore.cli import experiment, main
+    from scenescore.cli.experiment_runs import _sweep
     from scenescore.runtime import workers
 
-    jobs = []
+    jobs, executors = [], []
 
     def runner(args, out):
         jobs.append(args.jobs)
+        executors.append(_sweep(args, out).executor)
         return "## experiment", []
 
     monkeypatch.setattr(workers, "default_jobs", lambda device=None: 2)
@@ -152,6 +154,30 @@ def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tm
     assert jobs == [2, 1] and "worker processes" not in capsys.readouterr().out
     assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0  # its seeds in workers too
     assert jobs == [2, 1, 2] and "experiment: 2 worker processes" in capsys.readouterr().out
+    # by default the cores bound the processes, balanced to the tasks; --jobs names the processes
+    assert executors == [workers.map_balanced, workers.map_in_workers, workers.map_balanced]
+    assert main(["experiment", "heatmap", "--jobs", "2", "--out", str(tmp_path / "h")]) == 0
+    assert executors[-1] is workers.map_in_workers
+
+
+def test_equal_tasks_share_the_cores_where_they_end_sooner(monkeypatch):
+    from scenescore.runtime import workers
+
+    got = []
+    real = workers.map_in_workers
+
+    def counted(fn, items, jobs=1, log=print, bar=None, done=None):
+        got.append(jobs)
+        return real(fn, items, jobs, log, bar, done)
+
+    monkeypatch.setattr(workers, "map_in_workers", counted)
+    lines: list[str] = []
+    assert workers.map_balanced(_square, [3, 1, 2], jobs=2, log=lines.append) == [9, 1, 4]
+    assert got == [3] and "3 worker processes for 3 tasks on 2 cores" in lines  # not two, then one alone
+    lines.clear()
+    assert workers.map_balanced(_square, [1, 2, 3, 4], jobs=2, log=lines.append) == [1, 4, 9, 16]
+    assert got == [3, 2] and not [line for line in lines if "worker processes" in line]
+    assert workers.map_balanced(_square, [5], jobs=1, log=lines.append) == [25] and got[-1] == 1
 
 
 def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run_or_the_one_given(

@@ -86,7 +86,9 @@ def _add_running(p: argparse.ArgumentParser) -> None:
         "--jobs",
         type=JOBS,
         default=None,
-        help="worker processes, one thread each (default: one per usable core; with --device cuda, as many "
+        help="worker processes, one thread each (default: one per usable core, or up to two per core where "
+        "an experiment's tasks then end sooner, as three seeds on two cores in three processes; with "
+        "--device cuda, as many "
         "sharing the GPU as its free memory holds at 2 GiB each, at most one per usable core; "
         "1 runs everything in this process): compose, heatmap, missing and novel run their seeds in "
         "them, relations its seed and size pairs, zoo its scenario and seed pairs, tidy its scenarios; "
@@ -299,12 +301,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     check_options(args)
     args.device = device_of(args)  # checked before any work; every runner passes it on
+    # on a CPU by default, up to two worker processes per core where an experiment's tasks then end sooner
+    args.balance = args.jobs is None and args.device.type == "cpu"
     if args.jobs is None:
         from ..runtime.workers import default_jobs
 
         args.jobs = default_jobs(args.device)
         if args.jobs > 1:
-            how = "one per usable core"
+            how = "one per usable core, or up to two per core where an experiment's tasks then end sooner"
             if args.device.type != "cpu":
                 how = (
                     f"sharing {args.device}, as many as its free memory holds and at most one per usable core"

@@ -18,7 +18,8 @@ if TYPE_CHECKING:
 def _sweep(args: argparse.Namespace, out: Path) -> Sweep:
     """Where the experiment keeps each finished task's record (``out/tasks``), so that the same command
     run again computes only the tasks it has no record of (``--fresh``: every one), and what runs the
-    tasks (``--executor``: this machine's workers, or submitit's jobs with their logs under ``out/slurm``)."""
+    tasks (``--executor``: this machine's workers, without ``--jobs`` on a CPU up to two per core where
+    the tasks then end sooner; or submitit's jobs with their logs under ``out/slurm``)."""
     from ..experiments.tasks import Sweep
 
     sweep = Sweep(out / "tasks", fresh=bool(getattr(args, "fresh", False)))
@@ -28,6 +29,10 @@ def _sweep(args: argparse.Namespace, out: Path) -> Sweep:
         given = [f"--{k.replace('_', '-')}" for k, v in slurm.items() if v is not None]
         if given:
             raise UserError(f"{', '.join(given)}: options of --executor slurm or submitit-local")
+        if getattr(args, "balance", False):  # --jobs not given, on a CPU: --jobs is then the cores
+            from ..runtime.workers import map_balanced
+
+            sweep.executor = map_balanced
         return sweep
     from ..experiments.cluster import SlurmConfig, SubmititExecutor
 
