@@ -149,11 +149,11 @@ def test_experiment_jobs_default_to_the_cores_and_say_so(monkeypatch, capsys, tm
     monkeypatch.setattr(workers, "default_jobs", lambda device=None: 2)
     monkeypatch.setattr(experiment, "RUNNERS", {**experiment.RUNNERS, "missing": runner, "heatmap": runner})
     assert main(["experiment", "missing", "--out", str(tmp_path / "m")]) == 0
-    assert "experiment: 2 worker processes, one per usable core" in capsys.readouterr().out
+    assert "experiment: worker processes on 2 cores, one per core, or up to two" in capsys.readouterr().out
     assert main(["experiment", "missing", "--jobs", "1", "--out", str(tmp_path / "m")]) == 0
     assert jobs == [2, 1] and "worker processes" not in capsys.readouterr().out
     assert main(["experiment", "heatmap", "--out", str(tmp_path / "h")]) == 0  # its seeds in workers too
-    assert jobs == [2, 1, 2] and "experiment: 2 worker processes" in capsys.readouterr().out
+    assert jobs == [2, 1, 2] and "experiment: worker processes on 2 cores" in capsys.readouterr().out
     # by default the cores bound the processes, balanced to the tasks; --jobs names the processes
     assert executors == [workers.map_balanced, workers.map_in_workers, workers.map_balanced]
     assert main(["experiment", "heatmap", "--jobs", "2", "--out", str(tmp_path / "h")]) == 0
@@ -178,6 +178,10 @@ def test_equal_tasks_share_the_cores_where_they_end_sooner(monkeypatch):
     assert workers.map_balanced(_square, [1, 2, 3, 4], jobs=2, log=lines.append) == [1, 4, 9, 16]
     assert got == [3, 2] and not [line for line in lines if "worker processes" in line]
     assert workers.map_balanced(_square, [5], jobs=1, log=lines.append) == [25] and got[-1] == 1
+    # 27 tasks: three processes would end them in 13.5 rounds against two's 14, a gain that tasks of
+    # unequal length lose
+    assert workers.map_balanced(_square, list(range(27)), jobs=2, log=lines.append)[-1] == 26**2
+    assert got[-1] == 2
 
 
 def test_experiment_all_shares_one_model_folder_that_lives_as_long_as_the_run_or_the_one_given(

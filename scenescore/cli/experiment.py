@@ -307,12 +307,13 @@ def run(args: argparse.Namespace) -> int:
         from ..runtime.workers import default_jobs
 
         args.jobs = default_jobs(args.device)
-        if args.jobs > 1:
-            how = "one per usable core, or up to two per core where an experiment's tasks then end sooner"
-            if args.device.type != "cpu":
-                how = (
-                    f"sharing {args.device}, as many as its free memory holds and at most one per usable core"
-                )
+        if args.jobs > 1 and args.balance:
+            print(
+                f"experiment: worker processes on {args.jobs} cores, one per core, or up to two where an "
+                "experiment's tasks then end sooner (--jobs N: N processes; 1: this one)"
+            )
+        elif args.jobs > 1:
+            how = f"sharing {args.device}, as many as its free memory holds and at most one per usable core"
             print(f"experiment: {args.jobs} worker processes, {how} (--jobs 1: one process)")
     # args.model_cache: the folder every runner passes to training as its model cache
     if args.name != "all":

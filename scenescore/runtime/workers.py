@@ -28,12 +28,16 @@ __all__ = [
     "default_jobs",
     "balanced_jobs",
     "map_balanced",
+    "SOONER",
     "WorkerDied",
     "GPU_WORKER_BYTES",
     "PARENT_POLL_S",
 ]
 
 T = TypeVar("T")
+#: :func:`map_balanced` runs more processes than cores where the items then end in at most this share
+#: of the time that one process per core would take
+SOONER = 0.9
 Log = Callable[[str], None]
 
 PARENT_POLL_S = 0.5  # how often a worker checks that its parent still runs
@@ -82,11 +86,12 @@ def balanced_jobs(tasks: int, cores: int) -> int:
     if tasks < 1 or cores < 1:
         raise ValueError(f"tasks and cores must be at least 1, got {tasks} and {cores}")
     low, high = min(tasks, cores), min(tasks, 2 * cores)
+    return min(range(low, high + 1), key=lambda n: (_ends(tasks, n, cores), n))
 
-    def ends(n: int) -> float:
-        return -(-tasks // n) * max(1.0, n / cores)
 
-    return min(range(low, high + 1), key=lambda n: (ends(n), n))
+def _ends(tasks: int, n: int, cores: int) -> float:
+    """When ``tasks`` of equal length end in ``n`` processes on ``cores`` cores, in tasks' lengths."""
+    return -(-tasks // n) * max(1.0, n / cores)
 
 
 class WorkerDied(RuntimeError):
@@ -170,8 +175,12 @@ def map_balanced(
     """:func:`map_in_workers` for ``jobs`` cores: in :func:`balanced_jobs` worker processes, up to two per
     core where ``items`` of about equal length then end sooner (three on two cores: three processes,
     together in one and a half items' time, where two would leave one core idle for the third); its
-    choice logged where it differs from ``jobs``."""
+    choice logged where it differs from ``jobs``. More processes than cores only where the items would
+    end at least :data:`SOONER` as soon: an experiment's tasks are of unequal length, and a smaller
+    gain is lost to that."""
     n = balanced_jobs(len(items), jobs) if items and jobs > 1 else jobs
+    if n > jobs and _ends(len(items), n, jobs) > SOONER * _ends(len(items), jobs, jobs):
+        n = jobs
     if n > jobs:
         log(f"{n} worker processes for {len(items)} tasks on {jobs} cores")
     return map_in_workers(fn, items, n, log, bar, done)
