@@ -207,15 +207,21 @@ def run(
         raise SceneError(f"tidy experiment: seeds must be one or more whole numbers >= 0, got {seeds!r}")
     for name in scenarios:
         get(name)  # an unknown name fails here, before any worker starts
+    # each scenario's seeds' networks compile together where that pays, settled before any pair starts
+    kind, base = resolve_device(ex.device).type, config or TrainConfig(**ONE_NETWORK)
+    configs = {
+        (name, s): shared_compile(base, get(name).split(s)[0], len(seeds), kind)
+        for name in scenarios
+        for s in seeds
+    }
     one = partial(
         _scenario,
         efforts=tuple(efforts),
         test_scenes=test_scenes,
-        config=config,
+        configs=configs,
         sizes=tuple(sizes),
         options=options,
         place_options=place_options,
-        trainings=len(seeds),
         # what a worker needs of the execution: the log is its own, the tasks' records are kept here
         execution=Execution(progress=ex.progress and ex.jobs == 1, device=ex.device, cache=ex.cache),
     )
@@ -247,18 +253,17 @@ def _scenario(
     log: Callable[[str], None],
     efforts: tuple[float, ...],
     test_scenes: int,
-    config: TrainConfig | None,
+    configs: dict[tuple[str, int], TrainConfig],
     sizes: tuple[float, ...],
     options: TidyOptions | None,
     place_options: LangevinOptions | None,
-    trainings: int,
     execution: Execution,
 ) -> TidyRun:
-    """:func:`run_scenario` as a task of :func:`run`, its lines to the task's ``log``."""
+    """:func:`run_scenario` as a task of :func:`run` with its training settings of ``configs``, its lines
+    to the task's ``log``."""
     ex = replace(execution, log=log)
-    return run_scenario(
-        unit, efforts, test_scenes, config, sizes, options, place_options, trainings, execution=ex
-    )
+    config = configs[(unit.scenario, unit.seed)]
+    return run_scenario(unit, efforts, test_scenes, config, sizes, options, place_options, execution=ex)
 
 
 def run_scenario(
@@ -269,13 +274,10 @@ def run_scenario(
     sizes: tuple[float, ...],
     options: TidyOptions | None,
     place_options: LangevinOptions | None,
-    trainings: int = 1,
     *,
     execution: Execution | None = None,
 ) -> TidyRun:
-    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds
-    (``trainings``: how many trainings of the scenario's network the run makes, its seeds, which compile
-    together where that pays: :func:`~scenescore.learn.config.shared_compile`).
+    """One scenario and seed ``unit`` of :func:`run`: its cases and every method's outcomes and seconds.
     ``execution``: where and how (default ``Execution(progress=False)``; its ``jobs`` and ``sweep`` are
     :func:`run`'s, unused here)."""
     ex = execution or Execution(progress=False)
@@ -288,12 +290,9 @@ def run_scenario(
     sc = get(name)
     t0 = time.perf_counter()
     train_s, test_s = sc.split(seed)
-    cfg = shared_compile(
-        config or TrainConfig(**ONE_NETWORK), train_s, trainings, resolve_device(ex.device).type
-    )
     model = fit(
         train_s,
-        cfg,
+        config or TrainConfig(**ONE_NETWORK),
         seed=seed,
         progress=ex.progress,
         device=ex.device,

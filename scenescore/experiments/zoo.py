@@ -237,7 +237,7 @@ def run_one(
 def _pair(
     task: Task,
     log: Callable[[str], None],
-    config: TrainConfig | None,
+    configs: dict[tuple[str, int], TrainConfig],
     progress: bool,
     energy_only: bool,
     device: Any,
@@ -245,15 +245,13 @@ def _pair(
     val: float,
     cache: Any,
     train_scenes: int | None = None,
-    trainings: int = 1,
 ) -> dict[str, Any]:
-    """:func:`run_one` on one (scenario, seed) pair, its line logged when it is done; the pair's network
-    compiles with the run's other ``trainings`` of the scenario where that pays
-    (:func:`~scenescore.learn.config.shared_compile`)."""
+    """:func:`run_one` on one (scenario, seed) pair with its training settings of ``configs``, its line
+    logged when it is done."""
     name, seed = task.scenario, task.seed
-    scenes = training_split(name, seed, val, train_scenes)[0]
-    cfg = shared_compile(config or TrainConfig(**ONE_NETWORK), scenes, trainings, resolve_device(device).type)
-    one = run_one(name, seed, cfg, progress, energy_only, device, place, val, cache, train_scenes)
+    one = run_one(
+        name, seed, configs[(name, seed)], progress, energy_only, device, place, val, cache, train_scenes
+    )
     got = one["cases"]
     log(
         f"{name} seed {seed}: mean t {np.mean([c['t_cm'] for c in got]):.2f} cm, "
@@ -304,9 +302,17 @@ def run(
     ]
     if ex.jobs > 1:  # the largest graphs first, so the long pairs do not start last
         tasks.sort(key=lambda t: -get(t.scenario).counts[1])
+    # each scenario's seeds' networks compile together where that pays, settled before any pair starts
+    kind, base = resolve_device(ex.device).type, config or TrainConfig(**ONE_NETWORK)
+    configs = {
+        (t.scenario, t.seed): shared_compile(
+            base, training_split(t.scenario, t.seed, val, train_scenes)[0], seeds, kind
+        )
+        for t in tasks
+    }
     pair = partial(
         _pair,
-        config=config,
+        configs=configs,
         progress=ex.progress and ex.jobs == 1,
         energy_only=energy_only,
         device=ex.device,
@@ -314,7 +320,6 @@ def run(
         val=val,
         cache=ex.cache,
         train_scenes=train_scenes,
-        trainings=seeds,
     )
     bar = "zoo" if ex.progress else None
     records = run_tasks(pair, tasks, ex.jobs, ex.log, bar, ex.sweep, PAIR_RECORD)

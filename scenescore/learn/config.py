@@ -348,8 +348,8 @@ def shared_compile(
     of them to compile keeps the kernels in the cache folder, where the others (in any worker process)
     find them, so one cold compile serves them all. ``"on"`` where their work reaches
     :data:`COMPILE_FROM` and a compiler is installed; otherwise ``cfg`` as it is, each training then
-    deciding on its own work. Settled once for all of them, so that every one of them, and the model
-    cache's key, names the same choice."""
+    deciding on its own work. Settled before the trainings start, from the run's settings and data, so
+    that each training, and the model cache's key, names its choice."""
     if cfg.compile != "auto" or trainings < 1:
         return cfg
     if derive(cfg, scenes).work * trainings < COMPILE_FROM or not compiler_available(device_type):
