@@ -31,6 +31,7 @@ __all__ = [
     "Graph",
     "Compile",
     "COMPILE_FROM",
+    "compiled_placements",
     "compiles",
     "shared_compile",
     "training_work",
@@ -355,6 +356,14 @@ def shared_compile(
     if derive(cfg, scenes).work * trainings < COMPILE_FROM or not compiler_available(device_type):
         return cfg
     return replace(cfg, compile="on")
+
+
+def compiled_placements(cfg: TrainConfig | None) -> bool:
+    """Whether an experiment places with its networks' compiled chains
+    (:meth:`~scenescore.models.ScoreModel.compiled_chains`): where its trainings are settled ``"on"``
+    (:func:`shared_compile`: several trainings of one shape, so that the placements' graphs, compiled
+    once, serve every task's many placements)."""
+    return cfg is not None and cfg.compile == "on"
 
 
 def compiler_available(device_type: str) -> bool:

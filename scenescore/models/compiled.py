@@ -16,7 +16,9 @@ A large batch goes through either in pieces, one for each core, side by side (:c
 of counter-example, :func:`scenescore.learn.loop._pass_energies`), so that the pieces are few and large.
 The batch and object dimensions vary from the first call, so pieces and size groups of any size share
 a graph. A network is compiled while it trains (:func:`compiling`) and is eager again after, so that
-placing and evaluating a model is the same whatever trained it. Compiled networks are kept beside the
+placing and evaluating a model is the same whatever trained it; an experiment, which places many
+scenes with networks of a shape it trained compiled, may place with the compiled ``pose_grad`` alone
+(``compiling(..., loss=False)``, :func:`scenescore.planning.placement.compiled_as_trained`). Compiled networks are kept beside the
 network, not in it: a model pickles and copies as it always does.
 """
 
@@ -45,7 +47,7 @@ __all__ = ["Compiled", "compiling", "compiled_of", "CompiledPoseGrad", "Compiled
 class Compiled:
     """The compiled ``pose_grad`` and ``energy`` of one network (see the module's docstring)."""
 
-    def __init__(self, net: EnergyNet, device_type: str):
+    def __init__(self, net: EnergyNet, device_type: str, loss: bool = True):
         def pose_grad(*resolved: Any) -> tuple[Tensor, Tensor]:
             with torch.enable_grad():
                 x = resolved[0].detach().requires_grad_(True)
@@ -58,6 +60,7 @@ class Compiled:
 
         self._pose_grad = compile_fn(pose_grad, device_type)
         self._energy = compile_fn(energy, device_type)
+        self.loss = loss  # whether passes with the weights' gradient go through ``energy`` (else eager)
         self.traced = False  # whether pose_grad has run once (its graph compiled, or read from the cache)
         self.energy_traced = False  # the same of energy
 
@@ -97,12 +100,13 @@ def compiled_of(net: EnergyNet) -> Compiled | None:
 
 
 @contextmanager
-def compiling(net: EnergyNet, device_type: str, on: bool = True) -> Iterator[None]:
-    """Within the block ``net``'s chains and loss run compiled (``on``), eager after it."""
+def compiling(net: EnergyNet, device_type: str, on: bool = True, loss: bool = True) -> Iterator[None]:
+    """Within the block ``net``'s chains (and its loss's passes, with ``loss``) run compiled (``on``),
+    eager after it."""
     if not on:
         yield
         return
-    _COMPILED[net] = Compiled(net, device_type)
+    _COMPILED[net] = Compiled(net, device_type, loss)
     try:
         yield
     finally:

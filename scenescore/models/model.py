@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +16,7 @@ from ..runtime import check_memory, resolve_device
 from ..scene.scene import Scene
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from .compiled import compiling
 from .ensemble import MAX_MEMBERS, EnsembleNet, members_of
 from .info import ModelInfo
 from .moving import Mover, moving_one
@@ -63,6 +65,20 @@ class ScoreModel(nn.Module):
                 poses, feats, sizes, mask, round=round_flags(self.config, rnd), weight_grads=False
             )
         return self.energy(poses, st, weight_grads=False)[None]
+
+    @contextmanager
+    def compiled_chains(self) -> Iterator[None]:
+        """Within the block the chains that sample this model (placement's Langevin) take their pose
+        gradient through its networks' compiled pass (:mod:`~scenescore.models.compiled`), where they
+        trained compiled (``info.compiled``) on a CPU; elsewhere, and for every pass with the weights'
+        gradient, eager. For the experiments, which place many scenes after trainings of the same
+        network shape: a first compile for one placement costs more than it saves, so :func:`place`
+        stays eager. The same placements as eager to float rounding."""
+        with ExitStack() as stack:
+            if self.info.compiled and self.device.type == "cpu":
+                for net in members_of(self.net):
+                    stack.enter_context(compiling(net, "cpu", loss=False))
+            yield
 
     def tensors(self, scenes: Sequence[Scene]) -> SceneTensors:
         """Encode scenes with this model's encoder, on the model's device."""

@@ -378,10 +378,10 @@ class EnergyNet(nn.Module):
         shares = min(usable_cores(), b * per_row // PIECE_EDGES)  # a piece for each core, none too small
         piece = even_piece(b, piece, shares)  # enough work to share: a multiple of ``shares`` pieces
         c = compiled_of(self)
-        if c is not None and grad:  # training's compiled passes (compiled.compiling)
+        if c is not None and grad:  # the compiled passes (compiled.compiling)
             if not weight_grads and poses.requires_grad:  # a chain's pose gradient
                 return CompiledPoseGrad.apply(self, c, piece, *args)
-            if weight_grads and b <= self.loss_rows(n, poses.element_size()):  # the loss's merged passes
+            if weight_grads and c.loss and b <= self.loss_rows(n, poses.element_size()):  # the loss's passes
                 if shares > 1 and not any(t is not None and t.requires_grad for t in args):
                     return CompiledEnergy.apply(self, c, -(-b // shares), *args, *self.parameters())
                 return c.energy(self.resolve(*args))

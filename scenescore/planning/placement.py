@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from typing import Protocol, cast
 
@@ -23,6 +24,7 @@ from ..costs import Cost, HingeCollision, LearnedEnergy
 from ..encoders import Encoder
 from ..geometry.poses import compose_poses
 from ..learn import ONE_NETWORK, Run, TrainConfig, fit
+from ..learn.config import compiled_placements
 from ..models import ScoreModel
 from ..problem.problem import FEASIBILITY_TOL, Problem
 from ..runtime.devices import draw, generator
@@ -373,7 +375,10 @@ class SceneScorePlacer:
             raise RuntimeError(f"{self.name}: call fit() before predict()")
         model, batch = self.model, 8  # scenes per batched solve
         out: list[Scene] = []
-        with tqdm(total=len(scenes), desc="place", unit="scene", disable=not self.progress) as bar:
+        bar = tqdm(total=len(scenes), desc="place", unit="scene", disable=not self.progress)
+        # an experiment's placements after its trainings of one shape compiled: compiled chains
+        compiled = compiled_placements(self.train_config)
+        with bar, model.compiled_chains() if compiled else nullcontext():
             for k in range(0, len(scenes), batch):
                 out += place_many(
                     model,

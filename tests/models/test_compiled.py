@@ -11,7 +11,7 @@ import torch
 
 import scenescore as ss
 from scenescore.learn import NetworkConfig, TrainConfig
-from scenescore.learn.config import COMPILE_FROM, compiles, derive, shared_compile
+from scenescore.learn.config import COMPILE_FROM, compiled_placements, compiles, derive, shared_compile
 
 TINY = TrainConfig(
     members=1,
@@ -58,10 +58,23 @@ def test_compiled_training_is_eagers_function_and_a_seed_names_its_model(monkeyp
     copy = ss.models.ScoreModel(type(once.net)(once.net.cfg), once.encoder)
     copy.net.load_state_dict(once.net.state_dict())
     copy.info = once.info
-    assert (
-        ss.place(once, hole, opts, seed=0).objects[1].pose
-        == ss.place(copy, hole, opts, seed=0).objects[1].pose
-    )
+    eager_pose = ss.place(once, hole, opts, seed=0).objects[1].pose
+    assert eager_pose == ss.place(copy, hole, opts, seed=0).objects[1].pose
+    # an experiment's placements within compiled_chains: the compiled pose gradient, the same placement
+    # to float rounding; a pass with the weights' gradient stays eager
+    calls = []
+    pose_grad = compiled.CompiledPoseGrad.apply
+    monkeypatch.setattr(compiled.CompiledPoseGrad, "apply", lambda *a: calls.append(1) or pose_grad(*a))
+    with once.compiled_chains():
+        assert compiled.compiled_of(once.net) is not None and not compiled.compiled_of(once.net).loss
+        compiled_pose = ss.place(once, hole, opts, seed=0).objects[1].pose
+        monkeypatch.setattr(compiled.Compiled, "energy", lambda *a: pytest.fail("loss pass compiled"))
+        st = once.tensors([scenes[0]])
+        once.energy(st.poses.clone().requires_grad_(True), st).sum().backward()
+    assert calls and compiled.compiled_of(once.net) is None
+    assert compiled_pose == pytest.approx(eager_pose, abs=1e-4)
+    with eager.compiled_chains():  # a model that trained eager places eager
+        assert compiled.compiled_of(eager.net) is None
 
 
 def test_auto_compiles_from_the_work_where_a_compiler_is_there(monkeypatch):
@@ -95,6 +108,8 @@ def test_an_experiments_trainings_compile_together_where_their_work_pays(monkeyp
     # the one change is the choice: the cache's key then names it, and nothing else moves
     on = shared_compile(auto, scenes, enough, "cpu")
     assert replace(on, compile="auto") == auto
+    # those trainings' placements run compiled too; a training that decides on its own places eager
+    assert compiled_placements(on) and not compiled_placements(auto) and not compiled_placements(None)
     monkeypatch.setattr(config, "compiler_available", lambda device_type: False)
     assert shared_compile(auto, scenes, enough, "cpu") == auto  # no compiler: eager, as ever
 
