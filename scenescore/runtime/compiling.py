@@ -14,14 +14,22 @@ Python holds the GIL for each kernel, and the pieces take turns).
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any, TypeVar
 
 import torch
 
 from .cache import cache_folder
 
-__all__ = ["compile_fn", "compile_settings", "traced_autograd", "backward_with_forward", "mark_batch"]
+__all__ = [
+    "GRAPHS_KEPT",
+    "compile_fn",
+    "compile_settings",
+    "traced_autograd",
+    "backward_with_forward",
+    "mark_batch",
+]
 
 F = TypeVar("F", bound=Callable[..., Any])
 INDUCTOR_CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
@@ -49,18 +57,31 @@ def compile_fn(fn: F, device_type: str) -> F:
     return torch.compile(fn, fullgraph=True, **compile_settings(device_type))  # type: ignore[return-value]
 
 
+#: the graphs one compiled function may keep (torch's default keeps 8, then fails a ``fullgraph``
+#: call): one for each network it serves in a process (a network's settings are constants of its graph)
+#: and each way it is called (a training's inputs, a placement's), over every task a worker process runs
+GRAPHS_KEPT = 64
+
+
 def traced_autograd() -> Any:
     """The settings a compiled call that takes a gradient inside its graph needs, for the calling thread
-    (torch keeps the compiler's settings per thread: a worker thread does not see the caller's)."""
-    return torch._dynamo.config.patch(trace_autograd_ops=True)
+    (torch keeps the compiler's settings per thread: a worker thread does not see the caller's), with
+    room for :data:`GRAPHS_KEPT` graphs."""
+    return torch._dynamo.config.patch(trace_autograd_ops=True, recompile_limit=GRAPHS_KEPT)
 
 
-def backward_with_forward() -> Any:
+@contextmanager
+def backward_with_forward() -> Iterator[None]:
     """The setting, for the calling thread, under which a compiled call that will be differentiated
-    compiles its backward graph with its forward one, under the compiler's lock; by default the
+    compiles its backward graph with its forward one, under the compiler's lock (by default the
     backward graph compiles at the first backward pass, which takes no lock, so that two threads
-    differentiating their pieces at once could both compile it."""
-    return torch._functorch.config.patch(force_non_lazy_backward_lowering=True)
+    differentiating their pieces at once could both compile it), with room for :data:`GRAPHS_KEPT`
+    graphs."""
+    with (
+        torch._functorch.config.patch(force_non_lazy_backward_lowering=True),
+        torch._dynamo.config.patch(recompile_limit=GRAPHS_KEPT),
+    ):
+        yield
 
 
 def mark_batch(*tensors: torch.Tensor | None) -> None:

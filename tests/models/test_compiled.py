@@ -34,6 +34,8 @@ def test_compiled_training_is_eagers_function_and_a_seed_names_its_model(monkeyp
     # small pieces on two cores, whatever this machine has: the chains' and the loss's pieces side by side
     monkeypatch.setattr(network, "PIECE_EDGES", 512)
     monkeypatch.setattr(network, "usable_cores", lambda: 2)
+    # a compiled function keeps a graph per network and way of calling it, beyond torch's default room
+    monkeypatch.setattr(torch._dynamo.config, "recompile_limit", 1)
     in_pieces = []
     apply = compiled.CompiledEnergy.apply
     monkeypatch.setattr(compiled.CompiledEnergy, "apply", lambda *a: in_pieces.append(a[2]) or apply(*a))
