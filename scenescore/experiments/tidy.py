@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from typing import Any, cast
@@ -31,7 +30,7 @@ import numpy as np
 
 from ..costs import Displacement
 from ..learn import ONE_NETWORK, Run, TrainConfig, fit
-from ..learn.config import compiled_placements, shared_compile
+from ..learn.config import shared_compile
 from ..models import ScoreModel
 from ..planning.placement import place_many
 from ..planning.tidying import EFFORT, TidyError, TidyOptions, calibrate, plan_moves, tidy_many, validate_plan
@@ -299,34 +298,32 @@ def run_scenario(
         device=ex.device,
         run=Run(cache=ex.cache),
     )
-    # the calibration, the tidying and the baselines sample the model: compiled where it trained so
-    with model.compiled_chains() if compiled_placements(config) else nullcontext():
-        held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
-        gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
-        cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
-        if not cases:
-            raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
-        took = time.perf_counter() - t0
-        ex.log(f"{name} seed {seed}: trained in {took:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases")
-        res.cases += cases
-        messy = [c.messy for c in cases]
-        for e in efforts:
-            t = time.perf_counter()
-            results = tidy_many(model, messy, effort=e, seed=seed, options=options)
-            res.seconds[method_name(e)] += time.perf_counter() - t
-            for c, r in zip(cases, results):
-                out = Outcome(
-                    accepts(sc, r.after, c.truth),
-                    list(r.moved),
-                    r.total_displacement,
-                    len(r.steps),
-                    r.check.valid,
-                    r.buffers,
-                    r.plan_made,
-                )
-                res.outcomes[method_name(e)].append(out)
-            ex.log(f"{name} seed {seed}: {method_name(e)} {time.perf_counter() - t:.0f} s")
-        _baselines(res, name, sc, cases, model, place_options, seed, ex.log)
+    held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
+    gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
+    cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
+    if not cases:
+        raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
+    took = time.perf_counter() - t0
+    ex.log(f"{name} seed {seed}: trained in {took:.0f} s; move gain {gain:.3f}; {len(cases)} messy cases")
+    res.cases += cases
+    messy = [c.messy for c in cases]
+    for e in efforts:
+        t = time.perf_counter()
+        results = tidy_many(model, messy, effort=e, seed=seed, options=options)
+        res.seconds[method_name(e)] += time.perf_counter() - t
+        for c, r in zip(cases, results):
+            out = Outcome(
+                accepts(sc, r.after, c.truth),
+                list(r.moved),
+                r.total_displacement,
+                len(r.steps),
+                r.check.valid,
+                r.buffers,
+                r.plan_made,
+            )
+            res.outcomes[method_name(e)].append(out)
+        ex.log(f"{name} seed {seed}: {method_name(e)} {time.perf_counter() - t:.0f} s")
+    _baselines(res, name, sc, cases, model, place_options, seed, ex.log)
     return res
 
 

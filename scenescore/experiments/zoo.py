@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from contextlib import nullcontext
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, cast
@@ -28,7 +27,7 @@ from tqdm.auto import tqdm
 
 from ..evaluation.cases import MissingCase
 from ..learn import ONE_NETWORK, Run, TrainConfig, fit, split_validation
-from ..learn.config import compiled_placements, shared_compile
+from ..learn.config import shared_compile
 from ..models import ScoreModel
 from ..models.layout import BOUND_TOL
 from ..models.trust import energy_per_object
@@ -219,8 +218,7 @@ def run_one(
     cases = zoo_cases(sc, test_s, seed)
     tol = BOUND_TOL * model.config.length_scale  # "at a bound": as the trust check judges it
     opts = None if place is None else covering(place, model, [c.scene for c in cases])
-    bar = tqdm(total=len(cases), desc=f"{name}: place", unit="case", disable=not progress)
-    with bar, model.compiled_chains() if compiled_placements(config) else nullcontext():
+    with tqdm(total=len(cases), desc=f"{name}: place", unit="case", disable=not progress) as bar:
         placed = place_back(model, cases, seed, opts, energy_only, bar.update)
     # the energy at each placement and at its truth: a placement with the higher of the two is a
     # failure of the search; with the lower, the learned energy prefers the wrong pose

@@ -359,10 +359,12 @@ def shared_compile(
 
 
 def compiled_placements(cfg: TrainConfig | None) -> bool:
-    """Whether an experiment places with its networks' compiled chains
+    """Whether :class:`~scenescore.planning.placement.SceneScorePlacer` (the placements of Tables 1 and
+    2, many to a task) places with its network's compiled chains
     (:meth:`~scenescore.models.ScoreModel.compiled_chains`): where its trainings are settled ``"on"``
-    (:func:`shared_compile`: several trainings of one shape, so that the placements' graphs, compiled
-    once, serve every task's many placements)."""
+    (:func:`shared_compile`: several trainings of one shape, so that the placements' own graphs, compiled
+    once, serve every task). The zoo's tasks place eager: their placements are too small a part of them
+    to repay those graphs' first compile (docs/performance.md)."""
     return cfg is not None and cfg.compile == "on"
 
 

@@ -16,9 +16,9 @@ A large batch goes through either in pieces, one for each core, side by side (:c
 of counter-example, :func:`scenescore.learn.loop._pass_energies`), so that the pieces are few and large.
 The batch and object dimensions vary from the first call, so pieces and size groups of any size share
 a graph. A network is compiled while it trains (:func:`compiling`) and is eager again after, so that
-placing and evaluating a model is the same whatever trained it; an experiment, which places many
-scenes with networks of a shape it trained compiled, may place with the compiled ``pose_grad`` alone
-(``compiling(..., loss=False)``, :func:`scenescore.planning.placement.compiled_as_trained`). Compiled networks are kept beside the
+placing and evaluating a model is the same whatever trained it; Tables 1 and 2, which place many
+scenes with networks of a shape they trained compiled, place with the compiled ``pose_grad`` alone
+(``compiling(..., loss=False)``, :meth:`scenescore.models.ScoreModel.compiled_chains`). Compiled networks are kept beside the
 network, not in it: a model pickles and copies as it always does.
 """
 

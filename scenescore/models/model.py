@@ -71,9 +71,10 @@ class ScoreModel(nn.Module):
         """Within the block the chains that sample this model (placement's Langevin) take their pose
         gradient through its networks' compiled pass (:mod:`~scenescore.models.compiled`), where they
         trained compiled (``info.compiled``) on a CPU; elsewhere, and for every pass with the weights'
-        gradient, eager. For the experiments, which place many scenes after trainings of the same
-        network shape: a first compile for one placement costs more than it saves, so :func:`place`
-        stays eager. The same placements as eager to float rounding."""
+        gradient, eager. For many placements after trainings of the same network shape
+        (:func:`~scenescore.learn.config.compiled_placements`): the placements' graphs' first compile
+        costs more than one placement saves, so :func:`place` stays eager. The same placements as eager
+        to float rounding."""
         with ExitStack() as stack:
             if self.info.compiled and self.device.type == "cpu":
                 for net in members_of(self.net):
