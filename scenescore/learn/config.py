@@ -363,8 +363,8 @@ def compiled_placements(cfg: TrainConfig | None) -> bool:
     2, many to a task) places with its network's compiled chains
     (:meth:`~scenescore.models.ScoreModel.compiled_chains`): where its trainings are settled ``"on"``
     (:func:`shared_compile`: several trainings of one shape, so that the placements' own graphs, compiled
-    once, serve every task). The zoo's tasks place eager: their placements are too small a part of them
-    to repay those graphs' first compile (docs/performance.md)."""
+    once, serve every task). The zoo's and tidy's tasks place eager: a zoo task's placements are too
+    small a part of it to repay those graphs' first compile (docs/performance.md)."""
     return cfg is not None and cfg.compile == "on"
 
 
