@@ -18,8 +18,8 @@ The batch and object dimensions vary from the first call, so pieces and size gro
 a graph. A network is compiled while it trains (:func:`compiling`) and is eager again after, so that
 placing and evaluating a model is the same whatever trained it; Tables 1 and 2, which place many
 scenes with networks of a shape they trained compiled, place with the compiled ``pose_grad`` alone
-(``compiling(..., loss=False)``, :meth:`scenescore.models.ScoreModel.compiled_chains`). Compiled networks are kept beside the
-network, not in it: a model pickles and copies as it always does.
+(``compiling(..., loss=False)``, :meth:`scenescore.models.ScoreModel.compiled_chains`). Compiled
+networks are kept beside the network, not in it: a model pickles and copies as it always does.
 """
 
 from __future__ import annotations

@@ -73,8 +73,8 @@ class ScoreModel(nn.Module):
         trained compiled (``info.compiled``) on a CPU; elsewhere, and for every pass with the weights'
         gradient, eager. For many placements after trainings of the same network shape
         (:func:`~scenescore.learn.config.compiled_placements`): the placements' graphs' first compile
-        costs more than one placement saves, so :func:`place` stays eager. The same placements as eager
-        to float rounding."""
+        costs more than one placement saves, so :func:`place` stays eager. The compiled pass differs
+        from the eager one by float rounding, which can change which particle a placement keeps."""
         with ExitStack() as stack:
             if self.info.compiled and self.device.type == "cpu":
                 for net in members_of(self.net):
