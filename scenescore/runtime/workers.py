@@ -77,16 +77,19 @@ def default_jobs(device: Any = None) -> int:
     return 1
 
 
-def balanced_jobs(tasks: int, cores: int) -> int:
+def balanced_jobs(tasks: int, cores: int, sooner: float = 1.0) -> int:
     """Worker processes for ``tasks`` tasks of about equal length on ``cores`` cores: of the counts from
     ``min(tasks, cores)`` to ``min(tasks, 2 * cores)``, the one that ends the tasks first when processes
     beyond the cores share them (each then runs at ``cores / n`` of a core), the fewest on a tie. Three
     trainings on two cores run side by side and end in 1.5 trainings' time, where two and then one take
-    two (the third alone, one core idle); four on two take two rounds either way, so two processes."""
+    two (the third alone, one core idle); four on two take two rounds either way, so two processes.
+    ``sooner``: more processes than ``min(tasks, cores)`` only where the tasks then end in at most that
+    share of its time (:data:`SOONER` for tasks of unequal length)."""
     if tasks < 1 or cores < 1:
         raise ValueError(f"tasks and cores must be at least 1, got {tasks} and {cores}")
     low, high = min(tasks, cores), min(tasks, 2 * cores)
-    return min(range(low, high + 1), key=lambda n: (_ends(tasks, n, cores), n))
+    best = min(range(low, high + 1), key=lambda n: (_ends(tasks, n, cores), n))
+    return best if _ends(tasks, best, cores) <= sooner * _ends(tasks, low, cores) else low
 
 
 def _ends(tasks: int, n: int, cores: int) -> float:
@@ -178,9 +181,7 @@ def map_balanced(
     choice logged where it differs from ``jobs``. More processes than cores only where the items would
     end at least :data:`SOONER` as soon: an experiment's tasks are of unequal length, and a smaller
     gain is lost to that."""
-    n = balanced_jobs(len(items), jobs) if items and jobs > 1 else jobs
-    if n > jobs and _ends(len(items), n, jobs) > SOONER * _ends(len(items), jobs, jobs):
-        n = jobs
+    n = balanced_jobs(len(items), jobs, SOONER) if items and jobs > 1 else jobs
     if n > jobs:
         log(f"{n} worker processes for {len(items)} tasks on {jobs} cores")
     return map_in_workers(fn, items, n, log, bar, done)
