@@ -26,7 +26,6 @@ import scenescore as ss
 from scenescore.evaluation.cases import make_cases
 from scenescore.experiments import zoo
 from scenescore.learn import ONE_NETWORK, TrainConfig
-from scenescore.planning.placement import place_many
 
 
 def placements(
@@ -36,12 +35,8 @@ def placements(
     if scenario == "dining":
         sc = ss.scenarios.get("dining")
         train, test = sc.split(seed)
-        scenes = [c.scene for c in make_cases(test, sc.missing)]
-        return train, lambda m: [
-            p
-            for k in range(0, len(scenes), 8)
-            for p in place_many(m, scenes[k : k + 8], seed=seed + k, energy_only=True)
-        ]
+        missing = make_cases(test, sc.missing)  # placed as SceneScorePlacer.predict places them
+        return train, lambda m: zoo.place_back(m, missing, seed, energy_only=True)
     train, _, test = zoo.training_split(scenario, seed)
     cases = zoo.zoo_cases(ss.scenarios.get(scenario), test, seed)
     return train, lambda m: zoo.place_back(m, cases, seed)
