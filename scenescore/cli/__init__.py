@@ -20,7 +20,8 @@ if TYPE_CHECKING:
 # modules of this package that add sub-commands, in the order --help lists them
 COMMAND_MODULES = [
     "demo",
-    "data",
+    "generate",
+    "train",
     "evaluate",
     "place",
     "tidy",
@@ -136,6 +137,7 @@ SEEDS = number(1, 10_000, integer=True)  # runs over seeds seed .. seed+N-1
 JOBS = number(1, 1024, integer=True)  # worker processes
 SCENES = number(1, 1_000_000, integer=True)  # scenes to generate or test on
 PLACEMENTS = number(1, 1_000_000_000, integer=True)  # placements to judge
+PPM = number(0, open_lo=True)  # pixels per metre of a rendered image
 
 
 def add_common(p: argparse.ArgumentParser, seed: int | None = 0, seed_help: str | None = None) -> None:

@@ -12,8 +12,9 @@ from typing import Any, Literal, get_args
 
 from ..encoders import Encoder, FootprintEncoder
 from ..errors import ConfigError, check_number
+from ..models.architecture import Activation, EnergyConfig
 from ..models.ensemble import MAX_MEMBERS
-from ..models.network import WALLS, Activation, EnergyConfig
+from ..models.graph import WALLS
 from ..scene.scene import Scene
 from ..solvers.kernel import TRAINING, LangevinConfig
 from .data import data_scale, local_radius, stands_against_walls
@@ -56,7 +57,7 @@ LR_LOCAL = 4e-3
 
 @dataclass
 class NetworkConfig:
-    """The energy network's architecture (the :class:`~scenescore.models.network.EnergyConfig` fields
+    """The energy network's architecture (the :class:`~scenescore.models.architecture.EnergyConfig` fields
     that neither the data nor the training settings below decide); the defaults are EnergyConfig's own,
     read from it so that the two cannot drift apart (what each field means is documented there)."""
 

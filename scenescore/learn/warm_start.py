@@ -21,8 +21,8 @@ from torch import Tensor
 from ..encoders import Encoder
 from ..errors import ConfigError
 from ..models import ScoreModel
+from ..models.architecture import EnergyConfig
 from ..models.ensemble import members_of
-from ..models.network import EnergyConfig
 from ..scene.scene import Scene
 from .data import data_scale
 

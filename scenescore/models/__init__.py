@@ -1,12 +1,13 @@
 """Energy models: the SceneScore network, batching, trained models, checkpoints, the models the package
 ships (:func:`pretrained`) and the CasADi export."""
 
+from .architecture import EnergyConfig
 from .batching import SceneTensors, batch_scenes
 from .bundled import pretrained, pretrained_index, pretrained_names
 from .checkpoint import FORMAT_VERSION, CheckpointError
 from .info import Caveats, ModelInfo, TidyCalibration
 from .model import ScoreModel, load
-from .network import EnergyConfig, EnergyNet, edge_features
+from .network import EnergyNet, edge_features
 
 __all__ = [
     "EnergyConfig",

@@ -21,7 +21,8 @@ import torch
 from torch import Tensor, nn
 
 from ..errors import ConfigError
-from .network import EnergyConfig, EnergyNet
+from .architecture import EnergyConfig
+from .network import EnergyNet
 
 __all__ = ["EnsembleNet", "MAX_MEMBERS", "member_seed", "members_of"]
 

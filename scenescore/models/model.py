@@ -14,13 +14,14 @@ from torch import Tensor, nn
 from ..encoders import Encoder, make_encoder
 from ..runtime import check_memory, resolve_device
 from ..scene.scene import Scene
+from .architecture import EnergyConfig, parameter_count
 from .batching import SceneTensors, batch_scenes
 from .checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from .compiled import compiling
 from .ensemble import MAX_MEMBERS, EnsembleNet, members_of
 from .info import ModelInfo
 from .moving import Mover, moving_one
-from .network import EnergyConfig, EnergyNet, parameter_count, round_flags
+from .network import EnergyNet, round_flags
 from .trust import TrustReference
 
 __all__ = ["ScoreModel", "load", "with_walls"]
