@@ -1,6 +1,6 @@
 """Does a network trained compiled place faster through its compiled pose gradient, counting the first compile?
 
-    python studies/compiled_placements.py [--scenario zoo-pcb] [--seed 0] [--rounds 2]
+    python studies/compiled_placements.py [--scenario zoo-pcb|dining|tidy-dining] [--seed 0] [--rounds 2]
 
 One network is trained as the experiments train it when they settle its compile ``"on"`` (600
 iterations, one network, ``compile="on"``), then the same placements are timed in turn, eager and within
@@ -8,8 +8,11 @@ iterations, one network, ``compile="on"``), then the same placements are timed i
 compiling the placements' graphs (or reading them from the cache folder, ``SCENESCORE_CACHE_DIR``, when
 a run before left them there), the later ones do not. ``dining``: Table 1's 96 placements (its test
 scenes, each place setting's bowl, fork or knife removed, as ``experiment missing`` places them);
-another scenario: the zoo's test cases (``experiment zoo``'s ``place_back``). Prints the seconds of each
-round and the largest difference between the eager and compiled placements' poses.
+``tidy-dining``: the tidy experiment's dining cases (its first 3 test scenes displaced every way, as
+``experiment tidy`` makes them) tidied at the default effort after the move gain's calibration, both as
+``experiment tidy`` runs them; another scenario: the zoo's test cases (``experiment zoo``'s
+``place_back``). Prints the seconds of each round and the largest difference between the eager and
+compiled placements' poses.
 """
 
 from __future__ import annotations
@@ -25,7 +28,9 @@ import torch
 import scenescore as ss
 from scenescore.evaluation.cases import make_cases
 from scenescore.experiments import zoo
+from scenescore.experiments.messy import messy_cases
 from scenescore.learn import ONE_NETWORK, TrainConfig
+from scenescore.planning.tidying import calibrate, tidy_many
 
 
 def placements(
@@ -37,6 +42,17 @@ def placements(
         train, test = sc.split(seed)
         missing = make_cases(test, sc.missing)  # placed as SceneScorePlacer.predict places them
         return train, lambda m: zoo.place_back(m, missing, seed, energy_only=True)
+    if scenario == "tidy-dining":
+        sc = ss.scenarios.get("dining")
+        train, test = sc.split(seed)
+        messy = [c.messy for c in messy_cases(sc, test[:3], seed)]
+        held = test[3:11]  # the scenes the tidy experiment calibrates on
+
+        def tidied(m: ss.models.ScoreModel) -> list[ss.Scene]:
+            calibrate(m, held, seed=seed)
+            return [r.after for r in tidy_many(m, messy, seed=seed)]
+
+        return train, tidied
     train, _, test = zoo.training_split(scenario, seed)
     cases = zoo.zoo_cases(ss.scenarios.get(scenario), test, seed)
     return train, lambda m: zoo.place_back(m, cases, seed)
