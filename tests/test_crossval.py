@@ -131,6 +131,8 @@ def test_train_on_a_dozen_scenes_trains_on_all_and_carries_the_cross_validated_f
     assert v["folds"] == FOLDS and v["scenes"] == 9 and v["placements"] == 18  # both boxes of every scene
     assert sum("cross-validation fold" in line for line in lines) == FOLDS
     assert any("each held out once (3-fold cross-validation; seed 2)" in line for line in lines)
+    # a dozen scenes or fewer from random weights: train suggests the shipped prior
+    assert any(line.startswith("`--init prior` starts the training") for line in lines)
     assert not (tmp_path / "m.val.jsonl").exists()  # no one set of held-out scenes to write
     # three iterations learn nothing: the pooled held-out loss is not below chance, and the checkpoint
     # carries it, so that placements from the model say so
