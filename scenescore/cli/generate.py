@@ -22,10 +22,6 @@ GENERATE_BYTES_PER_TEXT_BYTE = 6
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    _add_generate(sub)
-
-
-def _add_generate(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "generate",
         help="generate scenes from a scenario",

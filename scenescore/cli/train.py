@@ -17,10 +17,6 @@ from .train_settings import build_config, parse_overrides, read_config
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    _add_train(sub)
-
-
-def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "train",
         help="train an energy model on example arrangements",
