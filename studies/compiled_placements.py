@@ -29,6 +29,7 @@ import scenescore as ss
 from scenescore.evaluation.cases import make_cases
 from scenescore.experiments import zoo
 from scenescore.experiments.messy import messy_cases
+from scenescore.experiments.tidy import TEST_SCENES, calibration_scenes
 from scenescore.learn import ONE_NETWORK, TrainConfig
 from scenescore.planning.tidying import calibrate, tidy_many
 
@@ -45,8 +46,8 @@ def placements(
     if scenario == "tidy-dining":
         sc = ss.scenarios.get("dining")
         train, test = sc.split(seed)
-        messy = [c.messy for c in messy_cases(sc, test[:3], seed)]
-        held = test[3:11]  # the scenes the tidy experiment calibrates on
+        messy = [c.messy for c in messy_cases(sc, test[:TEST_SCENES], seed)]
+        held = calibration_scenes(train, test, TEST_SCENES)
 
         def tidied(m: ss.models.ScoreModel) -> list[ss.Scene]:
             calibrate(m, held, seed=seed)

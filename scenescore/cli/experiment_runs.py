@@ -293,7 +293,7 @@ def _tidy(args: argparse.Namespace, out: Path) -> tuple[str, list[Row]]:
     if args.quick and not args.scenarios:
         names = ("dining",)
     iterations = args.iterations or (30 if args.quick else None)
-    test_scenes = args.test_scenes or (1 if args.quick else 3)
+    test_scenes = args.test_scenes or (1 if args.quick else tidy.TEST_SCENES)
     cfg = TrainConfig(iterations=iterations, **ONE_NETWORK) if iterations else TrainConfig(**ONE_NETWORK)
     efforts = tidy.EFFORTS if args.efforts is None else _efforts(args.efforts)
     log = (lambda s: None) if args.quiet else print

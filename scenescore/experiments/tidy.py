@@ -43,6 +43,7 @@ from .tidy_results import EFFORTS, Outcome, TidyRun, format_tidy, method_name, p
 
 __all__ = [
     "SCENARIOS",
+    "TEST_SCENES",
     "EFFORTS",
     "SIZES",
     "MessyCase",
@@ -56,6 +57,7 @@ __all__ = [
 ]
 
 SCENARIOS: tuple[str, ...] = ("dining", "desk", "tv", "zoo-workstation", "zoo-hall")
+TEST_SCENES = 3  # test scenes per scenario and seed that messy cases are made from
 
 
 def _score(
@@ -81,7 +83,7 @@ def _moved(before: Scene, after: Scene, tol: float = 0.01) -> list[str]:
 def run(
     scenarios: tuple[str, ...] = SCENARIOS,
     efforts: tuple[float, ...] = EFFORTS,
-    test_scenes: int = 3,
+    test_scenes: int = TEST_SCENES,
     seeds: Sequence[int] = (0,),
     config: TrainConfig | None = None,
     sizes: tuple[float, ...] = SIZES,
@@ -162,6 +164,14 @@ def _scenario(
     return run_scenario(unit, efforts, test_scenes, config, sizes, options, place_options, execution=ex)
 
 
+def calibration_scenes(train: list[Scene], test: list[Scene], test_scenes: int) -> list[Scene]:
+    """The scenes a scenario's move gain is calibrated on: up to 8 test scenes after the first
+    ``test_scenes`` (no messy case is made from them), or the first 8 training scenes where fewer than 4
+    are left."""
+    held = test[test_scenes : test_scenes + 8]
+    return held if len(held) >= 4 else train[:8]
+
+
 def run_scenario(
     unit: Task | tuple[str, int],
     efforts: tuple[float, ...],
@@ -194,8 +204,7 @@ def run_scenario(
         device=ex.device,
         run=Run(cache=ex.cache),
     )
-    held = test_s[test_scenes : test_scenes + 8]  # scenes no case is made from
-    gain = calibrate(model, held if len(held) >= 4 else train_s[:8], seed=seed)
+    gain = calibrate(model, calibration_scenes(train_s, test_s, test_scenes), seed=seed)
     cases = messy_cases(sc, test_s[:test_scenes], seed, sizes=sizes)
     if not cases:
         raise SceneError(f"tidy experiment: no messy case could be made for {name!r}")
