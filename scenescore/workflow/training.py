@@ -216,12 +216,12 @@ def _pinned(
             f"with {len(scenes)} examples, `scenescore place MODEL SCENE --examples {data}` adds their own "
             'relations to the learned energy (docs/your-data.md, "A handful of examples")'
         )
-    if len(scenes) <= FEW_SCENES and not started:
-        say(
-            "`--init prior` starts the training from the shipped arrangement prior instead of random "
-            "weights: on the zoo's table tops it left fewer catastrophic placements at five, eight and "
-            "twelve scenes (docs/your-data.md)"
-        )
+        if not started:
+            say(
+                "`--init prior` starts the training from the shipped arrangement prior instead of random "
+                "weights: on the zoo's table tops it left fewer catastrophic placements at five, eight and "
+                "twelve scenes (docs/your-data.md)"
+            )
     ref = model.trust
     if ref is None or ref.spreads is None:
         return None
