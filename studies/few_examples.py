@@ -16,7 +16,9 @@ it), and ``prior_sum`` that network plus ``--weight`` times ``examples``. One ro
 way, worst first by the first way's error over the oracle's; then a line per way pooling every
 scenario: the median scenario's t / oracle, the catastrophic placements (more than 25 cm and 10 of the
 scenario's oracle means off) and how many were flagged, and the good placements (within 3 of the
-scenario's oracle means) flagged. ``--augment K`` trains the network
+scenario's oracle means) flagged; last, per way, how many catastrophic and good placements each kind of
+flag fired on, and for an ensemble the counts with its ``members`` flag needing more members to doubt,
+or only where they split. ``--augment K`` trains the network
 on K sub-scenes of each training scene beside it (each without one movable object, the relations among
 the rest kept); ``--ways`` runs some of the five. ``--priors DIR`` keeps each prior there by name,
 ``--tune JSON`` sets the fine-tuning's TrainConfig fields, ``--first-seed`` starts the seeds elsewhere
@@ -34,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from zoo_configs import flag_kinds, members_rules  # a sibling study: studies/ is the script's own folder
 
 from scenescore.costs import ExampleRelations
 from scenescore.experiments.prior import train_prior
@@ -278,6 +281,11 @@ def report(per: dict[str, dict[str, list[dict]]], ways: tuple[str, ...]) -> None
     print()
     for w in ways:
         print(pooled(w, per))
+    for w in ways:
+        by_scenario = {name: v[w] for name, v in per.items()}
+        print(f"{w}: {flag_kinds(by_scenario)}")
+        if line := members_rules(by_scenario):
+            print(f"{w}: {line}")
 
 
 if __name__ == "__main__":

@@ -23,8 +23,9 @@ small-data variant.
 over ``scenescore.planning.placement.PLACE``; the candidates still cover the bounds). ``--out DIR`` keeps every
 case's record as ``DIR/config-K.json``; ``--records DIR/config-K.json`` prints that pooled trust line
 from such a file again, without running anything, and how many catastrophic and good placements each
-kind of flag fired on; ``--records OUT/cases.json`` does the same for a ``scenescore experiment zoo --out
-OUT`` run.
+kind of flag fired on, and for an ensemble the counts with the ``members`` flag needing 2 or more members
+to doubt, or only where they split (some but not all doubt); ``--records OUT/cases.json`` does the same
+for a ``scenescore experiment zoo --out OUT`` run.
 """
 
 from __future__ import annotations
@@ -32,14 +33,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import time
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from scenescore.experiments.execution import Execution
@@ -108,6 +111,8 @@ def main() -> None:
             sys.exit(f"--records {e}")
         print(trust_line(per_case))
         print(flag_kinds(per_case))
+        if line := members_rules(per_case):
+            print(line)
         return
     configs = json.loads(args.configs)
     scenarios = [s for s in args.scenarios.split(",") if s]
@@ -215,6 +220,50 @@ def flag_kinds(per_case: Mapping[str, Cases]) -> str:
         f"flags on {k} placements: " + (", ".join(f"{f} {n}" for f, n in sorted(v.items())) or "none")
         for k, v in on.items()
     )
+
+
+def _members_doubting(flags: list[str]) -> tuple[int, int] | None:
+    """The ``members`` flag's ``(members doubting, members)`` from a record's flag texts; None without
+    one."""
+    for f in flags:
+        m = re.match(r"members: (\d+) of (\d+) members", f)
+        if m:
+            return int(m.group(1)), int(m.group(2))
+    return None
+
+
+def _flagged_if(flags: list[str], keep_members: Callable[[int, int], bool]) -> bool:
+    """Whether a record stays flagged when its ``members`` flag counts only where ``keep_members(doubting,
+    members)`` holds: the ``relation`` line names the doubted relation of another flag, no flag itself."""
+    doubt = _members_doubting(flags)
+    rest = [f for f in flags if not f.startswith(("members:", "relation:"))]
+    return bool(rest) or (doubt is not None and keep_members(*doubt))
+
+
+def members_rules(per_case: Mapping[str, Cases]) -> str:
+    """The trust check's counts with the ``members`` flag needing 1, 2, ... members to doubt (the check
+    needs 1), and only where the members split (some but not all doubt), read from the records' flag
+    texts: the catastrophic placements flagged and the good ones flagged, pooled. Empty where no record
+    has a ``members`` flag."""
+    cases = [c for v in per_case.values() for c in v]
+    doubts = [d for c in cases if (d := _members_doubting(c["flags"])) is not None]
+    if not doubts:
+        return ""
+    size = max(m for _, m in doubts)
+    rules: list[tuple[str, Callable[[int, int], bool]]] = [
+        (f"members needed {k}", lambda d, m, k=k: d >= k) for k in range(1, size + 1)
+    ]
+    rules.append(("members split", lambda d, m: 0 < d < m))
+    bad = np.concatenate([catastrophic(v) for v in per_case.values()])
+    ok = np.concatenate([good(v) for v in per_case.values()])
+    out = []
+    for label, keep in rules:
+        fl = np.array([_flagged_if(c["flags"], keep) for c in cases], dtype=bool)
+        out.append(
+            f"{label}: catastrophic {int((bad & fl).sum())} of {int(bad.sum())} flagged, good "
+            f"{int((ok & fl).sum())} of {int(ok.sum())}"
+        )
+    return "; ".join(out)
 
 
 def _bad_flagged(cases: list[dict]) -> str:

@@ -97,13 +97,38 @@ def test_zoo_configs_counts_each_kind_of_flag_on_catastrophic_and_good_placement
     )
 
 
+def test_zoo_configs_counts_the_flags_with_the_members_flag_needing_more_members():
+    """studies/zoo_configs.py's ``members_rules``: from the ``members`` flag's text, the placements that
+    stay flagged when it needs 2 or 3 members to doubt, or counts only where they split; a placement
+    flagged by another flag stays flagged, the ``relation`` line (no flag of its own) does not keep one."""
+    members_rules = _study("zoo_configs.py")["members_rules"]
+
+    def case(t: float, *flags: str) -> dict:
+        return {"t_cm": t, "oracle_t_cm": 1.0, "flagged": bool(flags), "flags": list(flags)}
+
+    def doubt(k: int) -> str:
+        return f"members: {k} of 3 members put its share of their energy beyond any cup's in the data"
+
+    per_case = {
+        "a": [case(40.0, doubt(1), "relation: ..."), case(1.0, doubt(3), "relation: ...")],
+        "b": [case(0.5, doubt(2)), case(35.0, doubt(3), "far: ..."), case(0.8, "energy: ...")],
+    }
+    assert members_rules(per_case).split("; ") == [
+        "members needed 1: catastrophic 2 of 2 flagged, good 3 of 3",
+        "members needed 2: catastrophic 1 of 2 flagged, good 3 of 3",
+        "members needed 3: catastrophic 1 of 2 flagged, good 2 of 3",
+        "members split: catastrophic 2 of 2 flagged, good 2 of 3",
+    ]
+    assert members_rules({"a": [case(40.0, "far: ...")]}) == ""
+
+
 def test_few_examples_pools_records_of_several_runs(tmp_path, capsys):
     """studies/few_examples.py --from: each scenario's records of several runs (seeds apart) added up,
     the pooled line counting them all; a file without a way asked for is refused by name."""
     fe = _study("few_examples.py")
 
     def rec(t: float) -> dict:
-        return {"t_cm": t, "oracle_t_cm": 1.0, "flagged": t > 30}
+        return {"t_cm": t, "oracle_t_cm": 1.0, "flagged": t > 30, "flags": ["far: ..."] if t > 30 else []}
 
     one, two = tmp_path / "seed0.json", tmp_path / "seed1.json"
     one.write_text(json.dumps({"zoo-a": {"network": [rec(40)], "prior": [rec(1)]}}))
@@ -150,7 +175,7 @@ def test_few_examples_pools_each_scenarios_own_verdicts(capsys):
     fe = _study("few_examples.py")
 
     def rec(t: float, oracle: float) -> dict:
-        return {"t_cm": t, "oracle_t_cm": oracle, "flagged": False}
+        return {"t_cm": t, "oracle_t_cm": oracle, "flagged": False, "flags": []}
 
     per = {"zoo-fine": {"network": [rec(30, 1.0), rec(1, 1.0)]}, "zoo-wide": {"network": [rec(30, 20.0)]}}
     fe["report"](per, ("network",))
