@@ -99,9 +99,10 @@ def _energy_verdict(
         members_confidence, doubt = members_doubt(ref, category, seen.per_member[:, k])
         confidence = min(members_confidence, confidence)
         if doubt:
+            split = " (the ensemble disagrees)" if doubt < len(seen.per_member) else ""
             flags.append(
                 f"members: {doubt} of {len(seen.per_member)} members put its share of their energy "
-                f"beyond {whose} in the data (the ensemble disagrees)"
+                f"beyond {whose} in the data{split}"
             )
     return confidence, flags
 

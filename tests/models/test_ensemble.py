@@ -118,8 +118,14 @@ def test_placement_runs_and_a_doubting_member_flags(scenes, ensemble):
     cat = scene[name].category
     doubting = replace(ref, member_shares=[ref.member_shares[0], {cat: [-1e9, -1e9]}])
     got = assess(doubting, ensemble, placed, [name])[name]
-    assert any(f.startswith("members: 1 of 2 members") for f in got.flags)
+    assert any(
+        f.startswith("members: 1 of 2 members") and f.endswith("(the ensemble disagrees)") for f in got.flags
+    )
     assert got.confidence == 0.0
+    # both members doubt: the flag stands, but the members agree
+    both = replace(ref, member_shares=[{cat: [-1e9, -1e9]}, {cat: [-1e9, -1e9]}])
+    flags = [f for f in assess(both, ensemble, placed, [name])[name].flags if f.startswith("members:")]
+    assert len(flags) == 1 and flags[0].startswith("members: 2 of 2 members") and "disagrees" not in flags[0]
     calm = replace(ref, member_shares=[{cat: [1e9, 1e9]}, {cat: [1e9, 1e9]}], shares={cat: [1e9, 1e9]})
     assert not any(f.startswith("members:") for f in assess(calm, ensemble, placed, [name])[name].flags)
 
