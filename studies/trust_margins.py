@@ -13,8 +13,9 @@ run's models back from its model cache (it trains none: the same code, settings 
 computes each placed object's shares, and prints for each margin, and for the ``members`` flag needing
 1, 2 or all members, how many catastrophic and how many good placements the whole check flags (the
 other flags as the run recorded them). At the margins the run was made with (``--run-margins SHARE,
-MEMBER``, by default the check's own) it reproduces the run's flags: the script says so, or names the
-placements where it does not. Last it lists the catastrophic placements the check leaves unflagged at
+MEMBER``, by default the check's own) and the members its flag needed (``--run-needed``, by default
+the check's: most of them; runs before that rule needed 1) it reproduces the run's flags: the script
+says so, or names the placements where it does not. Last it lists the catastrophic placements the check leaves unflagged at
 its own margins, each with how much more the truth costs than the placement, by the mean energy and by
 each member: where every member prefers the placement, nothing the model knows tells it from a good one.
 """
@@ -36,10 +37,12 @@ from scenescore.learn import Run, TrainConfig, fit, split_validation
 from scenescore.learn.cache import cached_path
 from scenescore.models.ensemble import member_seed
 from scenescore.models.shares import shares_by_energy
-from scenescore.models.trust import MEMBER_MARGIN, SHARE_MARGIN, limit_beyond
+from scenescore.models.trust import MEMBER_MARGIN, SHARE_MARGIN, limit_beyond, members_needed
 from scenescore.scenarios import get
 
 SHARE_FLAGS = ("energy:", "members:")
+# the doubted relation a flagged placement's record names: no flag of its own
+RELATION = "relation:"
 
 
 def main() -> None:
@@ -55,12 +58,21 @@ def main() -> None:
         default=f"{SHARE_MARGIN:g},{MEMBER_MARGIN:g}",
         help="the share and member margins of the code that made the run (default the check's own)",
     )
+    ap.add_argument(
+        "--run-needed",
+        type=int,
+        default=None,
+        help="how many members the members flag needed in the code that made the run (default the "
+        "check's own: most of them)",
+    )
     args = ap.parse_args()
     try:
         per_case = read_cases(args.records)
     except ValueError as e:
         sys.exit(f"--records {e}")
     cfg = TrainConfig(**json.loads(args.config))
+    if args.run_needed is None:
+        args.run_needed = members_needed(cfg.members)
     margins = [float(m) for m in args.margins.split(",")]
     shares = {name: _shares(name, cases, cfg, args) for name, cases in per_case.items()}
     print("| energy margin (IQR) | members needed | catastrophic flagged | good flagged |")
@@ -82,7 +94,7 @@ def main() -> None:
         f"{name} #{k}"
         for name, cases in per_case.items()
         for k, (c, s) in enumerate(zip(cases, shares[name]))
-        if flagged(c, s, share_m, 1 if cfg.members > 1 else 0, member_m) != c["flagged"]
+        if flagged(c, s, share_m, args.run_needed if cfg.members > 1 else 0, member_m) != c["flagged"]
     ]
     verdict = "yes" if not odd else "no, at " + ", ".join(odd)
     print(f"\nmargins {share_m:g} and {member_m:g} reproduce the run's flags: {verdict}")
@@ -93,7 +105,7 @@ def misses(per_case: dict[str, list[dict]], shares: dict[str, list[dict]], cfg: 
     """The catastrophic placements the check leaves unflagged at its own margins, each with how much more
     the truth costs than the placement (the object's share at its truth minus at the placement: the
     scene's energy difference, the rest of the scene the same), by the mean energy and by each member."""
-    need = 1 if cfg.members > 1 else 0
+    need = members_needed(cfg.members) if cfg.members > 1 else 0
     rows = [
         (name, c, s)
         for name, cases in per_case.items()
@@ -152,7 +164,7 @@ def flagged(case: dict, s: dict, margin: float, need: int, member_margin: float 
     """Whether the check flags ``case`` with the energy flag at ``margin`` (``members`` when ``need``
     members or more put the share beyond their limit at ``member_margin``; 0: no members flag), its
     other flags as recorded."""
-    others = any(not f.startswith(SHARE_FLAGS) for f in case["flags"])
+    others = any(not f.startswith((*SHARE_FLAGS, RELATION)) for f in case["flags"])
     share, ref = s["shares"][0], s["refs"][0]
     beyond = [v > limit_beyond(r, member_margin) for v, r in zip(s["shares"][1:], s["refs"][1:])]
     return others or share > limit_beyond(ref, margin) or (need > 0 and sum(beyond) >= need)

@@ -60,6 +60,7 @@ def test_trust_margins_judges_the_share_flags_at_a_margin():
     assert flagged(case, s, 0.1, 2, 0.1) and not flagged(case, s, 0.1, 3, 0.1)  # members 1 and 3 > 1.1
     assert not flagged(case, s, 0.1, 0, 0.1) and not flagged(case, s, 0.1, 1, 2.5)  # none; 3.0 < 3.5
     assert flagged({"flags": ["far: ..."]}, s, 9.0, 0)  # another flag, as recorded
+    assert not flagged({"flags": ["members: ...", "relation: ..."]}, s, 9.0, 0)  # a note, no flag
 
 
 def test_trust_margins_lists_the_catastrophic_placements_left_unflagged(capsys):

@@ -46,7 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=number(1, MAX_MEMBERS, integer=True),
         default=None,
         help="the networks of the model's ensemble (seeds SEED, SEED+1000, ...): their mean energy "
-        "places, and a placed object the members disagree on is flagged; members times the training "
+        "places, and a placed object most members doubt is flagged; members times the training "
         "work (default 3; 1: one network; --set ensemble=snapshots takes the members from one run "
         "instead, 1 + (members - 1) x snapshot_cycle times the training)",
     )

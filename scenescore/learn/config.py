@@ -150,8 +150,8 @@ class TrainConfig:
     # decay is lowered to 1 - 3 / (its averaged iterations), so that the weights of the average's first
     # iteration weigh at most e^-3 (0.99 from 600 iterations)
     average: float = 0.99
-    # an ensemble: the energy is the mean of this many networks; where the members disagree about a
-    # placed object, its placement is flagged (scenescore.models.ensemble). Member 0 is the single model
+    # an ensemble: the energy is the mean of this many networks; where most members doubt a placed
+    # object, its placement is flagged (scenescore.models.trust.members_needed). Member 0 is the single model
     # of the seed either way. Three by default: their mean removes the placements far off that one
     # network's minimum makes on some seeds (docs/studies.md, "Ensembles on the zoo"); 1 trains a third
     # of the networks

@@ -18,7 +18,15 @@ from ..scene.scene import Scene
 from ..scene.units import length_unit
 from .layout import BOUND_TOL, nearest_distances, touching_bound
 from .shares import energy_per_object, shares_by_energy
-from .trust import CAVEAT, FAR_FACTOR, Assessment, TrustReference, apart_distances, members_doubt
+from .trust import (
+    CAVEAT,
+    FAR_FACTOR,
+    Assessment,
+    TrustReference,
+    apart_distances,
+    members_doubt,
+    members_needed,
+)
 
 __all__ = ["assess"]
 
@@ -72,7 +80,8 @@ def _energy_verdict(
 ) -> tuple[float, list[str]]:
     """The confidence in object ``name`` (the ``k``-th judged) by its energy, and the ``energy`` and
     ``members`` flags: its share beyond every one of its category's in the data, or (an ensemble) beyond
-    for enough members; for a reference without shares, the scene's energy beyond every example's."""
+    for most members (:func:`~scenescore.models.trust.members_needed`); for a reference without shares,
+    the scene's energy beyond every example's."""
     if seen.share is None:
         ref_e = np.asarray(ref.energies)
         e = cast(float, seen.energy)
@@ -98,7 +107,7 @@ def _energy_verdict(
     if seen.per_member is not None:
         members_confidence, doubt = members_doubt(ref, category, seen.per_member[:, k])
         confidence = min(members_confidence, confidence)
-        if doubt:
+        if doubt >= members_needed(len(seen.per_member)):
             split = " (the ensemble disagrees)" if doubt < len(seen.per_member) else ""
             flags.append(
                 f"members: {doubt} of {len(seen.per_member)} members put its share of their energy "

@@ -13,10 +13,10 @@ with the reason, when
   every object of its category in the reference scenes, by more than :data:`SHARE_MARGIN` times their
   interquartile range (``energy``; in checkpoints from before those
   shares were stored: the placed scene's energy per object beyond the reference scenes'),
-- for an ensemble (:mod:`scenescore.models.ensemble`): some member's energy puts the object's share
-  beyond that of every object of its category in the reference scenes by that member, by more than
-  :data:`MEMBER_MARGIN` times their interquartile range (``members``: the members disagree; the
-  confidence is then the lowest member's),
+- for an ensemble (:mod:`scenescore.models.ensemble`): most members (:func:`members_needed`) put the
+  object's share beyond that of every object of its category in the reference scenes by that member,
+  by more than :data:`MEMBER_MARGIN` times their interquartile range (``members``; the confidence is
+  the lowest member's whether or not the flag fires),
 - the object is farther from every other object than any object of its category in the data (``far``),
   or farther from every object of some category (``apart``: a chair from every table;
   :func:`~scenescore.models.layout.apart_limits`),
@@ -68,6 +68,7 @@ __all__ = [
     "Assessment",
     "reference",
     "members_doubt",
+    "members_needed",
     "NEAR_BOUND",
     "outside_data",
     "apart_distances",
@@ -88,7 +89,7 @@ MAX_FEATURES = 256  # distinct feature vectors kept in a checkpoint
 POOLED_RELATIONS = 256  # relative poses an object of an unseen category draws from (any category's)
 MAX_SHARES = 256  # energy shares kept per category (evenly spaced order statistics, the extremes kept)
 # interquartile ranges of the reference beyond its largest value at which a flag fires: the energy
-# share's, an ensemble member's share (lower: a member's doubt is the catastrophic placement's sign),
+# share's, an ensemble member's share (lower: the members' doubt is the catastrophic placement's sign),
 # the energy per object of a checkpoint without shares (docs/studies.md, "The share flags' margins")
 SHARE_MARGIN = 1.0
 MEMBER_MARGIN = 0.5
@@ -270,6 +271,14 @@ class TrustReference:
                 f"{bad[0]}: not the expected finite numbers or lists, got {getattr(ref, bad[0])!r:.80}"
             )
         return ref
+
+
+def members_needed(members: int) -> int:
+    """How many of an ensemble's ``members`` must doubt a placement (put its share beyond their own
+    reference) for the ``members`` flag: most of them. One member's doubt alone, where the others see
+    nothing wrong, marks good placements as often as catastrophic ones (docs/studies.md, "How many
+    members must doubt")."""
+    return members // 2 + 1
 
 
 def members_doubt(ref: TrustReference, category: str, shares: np.ndarray) -> tuple[float, int]:

@@ -1,7 +1,7 @@
 """Ensembles: several networks trained with different seeds, their mean energy placing and their
 disagreement flagging. Each member is the single model of its seed; the ensemble's energy is the
 members' mean, its gradient exact (float64), its checkpoint round-trips and refuses damage, and a
-member that scores a placement beyond its own data flags it."""
+majority of members that score a placement beyond their own data flags it."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from scenescore.learn import NetworkConfig, Run, TrainConfig, fit
 from scenescore.models import CheckpointError, ScoreModel, load
 from scenescore.models.ensemble import EnsembleNet, member_seed, members_of
 from scenescore.models.flags import assess
-from scenescore.models.trust import member_shares
+from scenescore.models.trust import member_shares, members_needed
 from scenescore.planning.placement import PLACE
 
 CFG = TrainConfig(
@@ -104,7 +104,7 @@ def test_inspect_names_the_members(tmp_path, ensemble, capsys):
     assert json.loads(capsys.readouterr().out)["members"] == 2
 
 
-def test_placement_runs_and_a_doubting_member_flags(scenes, ensemble):
+def test_placement_runs_and_doubting_members_flag(scenes, ensemble):
     scene = scenes[0]
     name = scene.names[-1]
     ref = ensemble.trust
@@ -118,16 +118,35 @@ def test_placement_runs_and_a_doubting_member_flags(scenes, ensemble):
     cat = scene[name].category
     doubting = replace(ref, member_shares=[ref.member_shares[0], {cat: [-1e9, -1e9]}])
     got = assess(doubting, ensemble, placed, [name])[name]
-    assert any(
-        f.startswith("members: 1 of 2 members") and f.endswith("(the ensemble disagrees)") for f in got.flags
-    )
-    assert got.confidence == 0.0
-    # both members doubt: the flag stands, but the members agree
+    assert not any(f.startswith("members:") for f in got.flags)  # one of two is no majority
+    assert got.confidence == 0.0  # the lowest member's, flag or not
+    # both members doubt: the flag fires, and says nothing of a disagreement
     both = replace(ref, member_shares=[{cat: [-1e9, -1e9]}, {cat: [-1e9, -1e9]}])
     flags = [f for f in assess(both, ensemble, placed, [name])[name].flags if f.startswith("members:")]
     assert len(flags) == 1 and flags[0].startswith("members: 2 of 2 members") and "disagrees" not in flags[0]
     calm = replace(ref, member_shares=[{cat: [1e9, 1e9]}, {cat: [1e9, 1e9]}], shares={cat: [1e9, 1e9]})
     assert not any(f.startswith("members:") for f in assess(calm, ensemble, placed, [name])[name].flags)
+
+
+def test_most_of_three_members_must_doubt(scenes, ensemble):
+    """Three members (the second network twice): one doubting member does not flag, two do, and the flag
+    says they disagree with the third."""
+    a, b = members_of(ensemble.net)
+    three = ScoreModel(EnsembleNet([a, b, b]), ensemble.encoder)
+    assert [members_needed(m) for m in (1, 2, 3, 5)] == [1, 2, 2, 3]
+    scene = scenes[0]
+    name = scene.names[-1]
+    cat, ref = scene[name].category, ensemble.trust
+    assert ref is not None and ref.member_shares is not None
+    calm, doubt = {cat: [1e9, 1e9]}, {cat: [-1e9, -1e9]}
+
+    def members_flags(shares: list[dict]) -> list[str]:
+        judged = replace(ref, member_shares=shares, shares={cat: [1e9, 1e9]})
+        return [f for f in assess(judged, three, scene, [name])[name].flags if f.startswith("members:")]
+
+    assert members_flags([doubt, calm, calm]) == []
+    (flag,) = members_flags([doubt, calm, doubt])
+    assert flag.startswith("members: 2 of 3 members") and flag.endswith("(the ensemble disagrees)")
 
 
 def test_train_members_on_the_command_line(tmp_path, scenes, capsys):
