@@ -15,9 +15,10 @@ computes each placed object's shares, and prints for each margin, and for the ``
 other flags as the run recorded them). At the margins the run was made with (``--run-margins SHARE,
 MEMBER``, by default the check's own) and the members its flag needed (``--run-needed``, by default
 the check's: most of them; runs before that rule needed 1) it reproduces the run's flags: the script
-says so, or names the placements where it does not. Last it lists the catastrophic placements the check leaves unflagged at
-its own margins, each with how much more the truth costs than the placement, by the mean energy and by
-each member: where every member prefers the placement, nothing the model knows tells it from a good one.
+says so, or names the placements where it does not. Last it lists the catastrophic placements the
+check leaves unflagged at its own margins, each with how much more the truth costs than the placement,
+by the mean energy and by each member: where every member prefers the placement, nothing the model
+knows tells it from a good one.
 """
 
 from __future__ import annotations
@@ -37,12 +38,10 @@ from scenescore.learn import Run, TrainConfig, fit, split_validation
 from scenescore.learn.cache import cached_path
 from scenescore.models.ensemble import member_seed
 from scenescore.models.shares import shares_by_energy
-from scenescore.models.trust import MEMBER_MARGIN, SHARE_MARGIN, limit_beyond, members_needed
+from scenescore.models.trust import MEMBER_MARGIN, RELATION, SHARE_MARGIN, limit_beyond, members_needed
 from scenescore.scenarios import get
 
 SHARE_FLAGS = ("energy:", "members:")
-# the doubted relation a flagged placement's record names: no flag of its own
-RELATION = "relation:"
 
 
 def main() -> None:

@@ -52,7 +52,7 @@ from scenescore.learn import ONE_NETWORK, VALIDATION_FRACTION, TrainConfig
 from scenescore.learn.cache import cached_path
 from scenescore.models import ScoreModel, load
 from scenescore.models.ensemble import members_of
-from scenescore.models.trust import reference
+from scenescore.models.trust import RELATION, reference
 from scenescore.planning.placement import PLACE
 from scenescore.scenarios.zoo import ROOMS, ZOO
 from scenescore.scene.outputs import atomic_write_text
@@ -236,13 +236,14 @@ def _flagged_if(flags: list[str], keep_members: Callable[[int, int], bool]) -> b
     """Whether a record stays flagged when its ``members`` flag counts only where ``keep_members(doubting,
     members)`` holds: the ``relation`` line names the doubted relation of another flag, no flag itself."""
     doubt = _members_doubting(flags)
-    rest = [f for f in flags if not f.startswith(("members:", "relation:"))]
+    rest = [f for f in flags if not f.startswith(("members:", RELATION))]
     return bool(rest) or (doubt is not None and keep_members(*doubt))
 
 
 def members_rules(per_case: Mapping[str, Cases]) -> str:
     """The trust check's counts with the ``members`` flag needing 1, 2, ... members to doubt (the check
-    needs 1), and only where the members split (some but not all doubt), read from the records' flag
+    needs most of them, :func:`~scenescore.models.trust.members_needed`; runs before that rule needed
+    1), and only where the members split (some but not all doubt), read from the records' flag
     texts: the catastrophic placements flagged and the good ones flagged, pooled. Empty where no record
     has a ``members`` flag."""
     cases = [c for v in per_case.values() for c in v]

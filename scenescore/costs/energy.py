@@ -19,7 +19,7 @@ from ..models.model import with_walls
 from ..models.moving import Mover, stack_movers
 from ..models.network import round_flags
 from ..models.rivals import rivals
-from ..models.trust import CAVEAT, Assessment, outside_data
+from ..models.trust import CAVEAT, RELATION, Assessment, outside_data
 from ..runtime import draw
 from ..scene.scene import Scene
 from ..scene.units import length_unit
@@ -218,7 +218,7 @@ class LearnedEnergy(Cost, Guide):
             for n, v in flagged.items()
             if n in scene.names and any(not f.startswith(CAVEAT) for f in v.flags)
         ]
-        return {n: "relation: " + explain(self.model, scene, n).doubt() for n in doubted}
+        return {n: RELATION + explain(self.model, scene, n).doubt() for n in doubted}
 
     def doubts(self, poses: Tensor) -> Tensor | None:
         """Rows that put a moving object the energy sees where the model's data never had one of its

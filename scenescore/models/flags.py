@@ -107,10 +107,11 @@ def _energy_verdict(
     if seen.per_member is not None:
         members_confidence, doubt = members_doubt(ref, category, seen.per_member[:, k])
         confidence = min(members_confidence, confidence)
-        if doubt >= members_needed(len(seen.per_member)):
-            split = " (the ensemble disagrees)" if doubt < len(seen.per_member) else ""
+        size = len(seen.per_member)
+        if doubt >= members_needed(size):
+            split = " (the ensemble disagrees)" if doubt < size else ""
             flags.append(
-                f"members: {doubt} of {len(seen.per_member)} members put its share of their energy "
+                f"members: {doubt} of {size} members put its share of their energy "
                 f"beyond {whose} in the data{split}"
             )
     return confidence, flags

@@ -76,6 +76,7 @@ __all__ = [
     "energy_shares",
     "member_shares",
     "CAVEAT",
+    "RELATION",
     "SHARE_MARGIN",
     "MEMBER_MARGIN",
     "limit_beyond",
@@ -95,6 +96,8 @@ SHARE_MARGIN = 1.0
 MEMBER_MARGIN = 0.5
 ENERGY_MARGIN = 0.5
 CAVEAT = "validation: "  # how a flag from the model's held-out evaluation begins (not out of distribution)
+# how the line naming the relation a flagged placement doubts begins: a note beside the flags, no flag
+RELATION = "relation: "
 
 
 @dataclass
