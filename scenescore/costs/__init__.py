@@ -5,10 +5,11 @@
 One module per cost holds its torch form, constraint rows, exact check, CasADi form and YAML spec.
 """
 
-from .base import Binding, ConstraintCost, Cost, CostError, Sum, TermValue, Violation, as_sum
+from .base import ConstraintCost, Cost, Sum, as_sum
 from .guide import Guide, Verdict
 from .spec import CostSpec, SpecContext, cost_types, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
+from .terms import Binding, CostError, TermValue, Violation
 
 # Each module registers its YAML type on import; errors list the types in this order.
 # isort: off

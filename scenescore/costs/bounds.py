@@ -11,9 +11,10 @@ from torch import Tensor
 
 from ..geometry.exact import footprint_extent
 from ..geometry.footprints import support_extent
-from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
+from .base import ConstraintCost, Cost
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
+from .terms import CostError, Violation, check_scene_names
 
 __all__ = ["Bounds", "BoundsSpec"]
 

@@ -15,9 +15,10 @@ from torch import Tensor
 from ..geometry.exact import overlap_depth_exceeds, shapely_core
 from ..geometry.footprints import signed_distance_placed
 from ..runtime import chunk_rows, return_freed_memory
-from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
+from .base import ConstraintCost, Cost
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
+from .terms import CostError, Violation, check_scene_names
 
 __all__ = ["HingeCollision", "CollisionSpec"]
 

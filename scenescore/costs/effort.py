@@ -29,9 +29,10 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from .base import Cost, CostError, check_scene_names
+from .base import Cost
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
+from .terms import CostError, check_scene_names
 
 __all__ = [
     "EffortTerm",

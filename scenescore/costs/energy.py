@@ -23,10 +23,11 @@ from ..models.trust import CAVEAT, RELATION, Assessment, outside_data
 from ..runtime import draw
 from ..scene.scene import Scene
 from ..scene.units import length_unit
-from .base import Cost, CostError, check_scene_names
+from .base import Cost
 from .guide import Alternatives, Guide, Verdict
 from .spec import CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, objective_by_torch, register_casadi_form
+from .terms import CostError, check_scene_names
 
 __all__ = ["LearnedEnergy", "EnergySpec"]
 

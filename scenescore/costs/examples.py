@@ -27,9 +27,10 @@ from torch import Tensor
 from ..geometry.poses import compose_poses, relative_poses
 from ..runtime import draw
 from ..scene.scene import Scene
-from .base import Cost, CostError
+from .base import Cost
 from .guide import Guide
 from .spec import CostSpec, SpecContext, register_cost_type
+from .terms import CostError
 
 __all__ = ["ExampleRelations", "ExamplesSpec", "BANDWIDTH", "HEADING_BANDWIDTH", "FLOOR"]
 

@@ -7,7 +7,8 @@ from typing import cast
 
 from torch import Tensor
 
-from .base import Cost, CostError
+from .base import Cost
+from .terms import CostError
 
 __all__ = ["CostFn"]
 

@@ -10,9 +10,10 @@ import torch
 from pydantic import Field
 from torch import Tensor
 
-from .base import ConstraintCost, Cost, CostError, Violation, check_scene_names
+from .base import ConstraintCost, Cost
 from .spec import Coordinate, CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
+from .terms import CostError, Violation, check_scene_names
 
 __all__ = ["ReachLimit", "ReachSpec"]
 

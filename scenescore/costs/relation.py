@@ -28,8 +28,9 @@ from ..models.batching import SceneTensors
 from ..models.model import with_walls
 from ..models.network import round_flags
 from ..scene.scene import Scene, SceneObject
-from .base import Cost, CostError, check_scene_names
+from .base import Cost
 from .spec import CostSpec, SpecContext, register_cost_type
+from .terms import CostError, check_scene_names
 
 __all__ = ["Relation", "RelationSpec", "ROLE_COLOURS", "COMPASS", "as_roles", "compass", "reads_compass"]
 

@@ -12,7 +12,8 @@ from typing import Annotated, Any, Protocol
 from pydantic import BaseModel, ConfigDict, Field, PydanticUndefinedAnnotation
 
 from ..scene.fields import MAX_LENGTH
-from .base import Cost, CostError
+from .base import Cost
+from .terms import CostError
 
 __all__ = ["CostSpec", "Coordinate", "SpecContext", "register_cost_type", "cost_types"]
 

@@ -22,7 +22,8 @@ from torch import Tensor
 
 from ..geometry.footprints import footprint_core
 from ..scene.scene import Scene
-from .base import ConstraintCost, Cost, CostError
+from .base import ConstraintCost, Cost
+from .terms import CostError
 
 __all__ = [
     "SymbolicProblem",

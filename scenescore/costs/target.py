@@ -12,9 +12,10 @@ from pydantic import Field
 from torch import Tensor
 
 from ..scene.fields import MAX_LENGTH
-from .base import Cost, CostError, check_scene_names
+from .base import Cost
 from .spec import Coordinate, CostSpec, SpecContext, register_cost_type
 from .symbolic import SymbolicProblem, register_casadi_form
+from .terms import CostError, check_scene_names
 
 __all__ = ["PoseTarget", "TargetSpec"]
 

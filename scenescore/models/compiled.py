@@ -25,19 +25,27 @@ networks are kept beside the network, not in it: a model pickles and copies as i
 from __future__ import annotations
 
 import weakref
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from functools import partial, reduce
 from itertools import accumulate
-from typing import Any
+from typing import Any, TypeVar
 
 import torch
 from torch import Tensor
 from torch.autograd.function import once_differentiable
 
-from ..runtime import backward_with_forward, compile_fn, in_parallel, mark_batch, traced_autograd
+from ..runtime import (
+    backward_with_forward,
+    compile_fn,
+    first_compile,
+    in_parallel,
+    mark_batch,
+    traced_autograd,
+)
 from .chunks import rows_of
 
+T = TypeVar("T")
 # ``net`` below is the EnergyNet (typed Any: this module sits under network.py, which imports it)
 EnergyNet = Any
 
@@ -60,6 +68,7 @@ class Compiled:
 
         self._pose_grad = compile_fn(pose_grad, device_type)
         self._energy = compile_fn(energy, device_type)
+        self.net, self.device_type = net, device_type
         self.loss = loss  # whether passes with the weights' gradient go through ``energy`` (else eager)
         self.traced = False  # whether pose_grad has run once (its graph compiled, or read from the cache)
         self.energy_traced = False  # the same of energy
@@ -77,6 +86,15 @@ class Compiled:
         mark_batch(*[a for a in args if isinstance(a, Tensor)])
         with backward_with_forward():
             return self._energy(*args)
+
+
+def graph_key(kind: str, c: Compiled, args: Sequence[Any]) -> str:
+    """What decides the graph that ``c``'s ``kind`` pass compiles for ``args`` (the network's settings,
+    which inputs are given and their kinds), naming it for :func:`~scenescore.runtime.first_compile`."""
+    kinds = [
+        f"{a.dtype}/{a.dim()}" if isinstance(a, Tensor) else ("-" if a is None else repr(a)) for a in args
+    ]
+    return f"{kind} {c.device_type} {c.net.cfg!r} {kinds}"
 
 
 def _contiguous(resolved: Sequence[Any]) -> list[Any]:
@@ -113,6 +131,13 @@ def compiling(net: EnergyNet, device_type: str, on: bool = True, loss: bool = Tr
         _COMPILED.pop(net, None)
 
 
+def _first(c: Compiled, kind: str, inputs: Sequence[Any], call: Callable[[], T]) -> T:
+    """A pass's first call in this process: within :func:`~scenescore.runtime.first_compile` of its
+    graph, so that processes starting alike compile it once between them."""
+    with first_compile(graph_key(kind, c, inputs)):
+        return call()
+
+
 class CompiledPoseGrad(torch.autograd.Function):
     """The energies of a batch and their gradient in the poses, ``rows`` pose sets at a time through the
     compiled ``pose_grad``, the pieces side by side (the first call's first piece alone in the calling
@@ -128,7 +153,7 @@ class CompiledPoseGrad(torch.autograd.Function):
             return c.pose_grad(net.resolve(*part))
 
         starts = list(range(0, b, rows))
-        first = [] if c.traced else [piece(starts.pop(0))]
+        first = [] if c.traced else [_first(c, "pose_grad", inputs, partial(piece, starts.pop(0)))]
         c.traced = True
         done = [*first, *in_parallel([partial(piece, a) for a in starts])]
         ctx.save_for_backward(torch.cat([g for _, g in done]))
@@ -160,7 +185,7 @@ class CompiledEnergy(torch.autograd.Function):
                 return c.energy(net.resolve(*part))
 
         starts = list(range(0, b, rows))
-        first = [] if c.energy_traced else [piece(starts.pop(0))]
+        first = [] if c.energy_traced else [_first(c, "energy", args, partial(piece, starts.pop(0)))]
         c.energy_traced = True
         ctx.pieces = [*first, *in_parallel([partial(piece, a) for a in starts])]
         ctx.weights = inputs[6:]

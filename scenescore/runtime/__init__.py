@@ -7,7 +7,8 @@ numbers come from (:func:`resolve_device`, :func:`generator`, :func:`draw`), the
 before a large allocation and the chunks it sets (:func:`check_memory`, :func:`chunk_rows`,
 :func:`return_freed_memory`), and the pieces a large batch is cut into (:func:`in_parallel`,
 :data:`POOL_ROWS`, :func:`usable_cores`, :func:`torch_threads`), and compiling a pass for this machine
-(:func:`compile_fn`, :func:`mark_batch`, :func:`traced_autograd`, :func:`backward_with_forward`).
+(:func:`compile_fn`, :func:`first_compile`, :func:`mark_batch`, :func:`traced_autograd`,
+:func:`backward_with_forward`).
 
 The edge (training, the workflow, experiments, the command line) sets the budgets and starts workers
 through the modules themselves: ``threads`` (:func:`~scenescore.runtime.threads.thread_budget`),
@@ -16,7 +17,7 @@ through the modules themselves: ``threads`` (:func:`~scenescore.runtime.threads.
 result came from).
 """
 
-from .compiling import backward_with_forward, compile_fn, mark_batch, traced_autograd
+from .compiling import backward_with_forward, compile_fn, first_compile, mark_batch, traced_autograd
 from .cores import usable_cores
 from .devices import draw, generator, resolve_device
 from .memory import MemoryBudgetError, chunk_rows, return_freed_memory
@@ -36,6 +37,7 @@ __all__ = [
     "POOL_ROWS",
     "usable_cores",
     "compile_fn",
+    "first_compile",
     "mark_batch",
     "traced_autograd",
     "backward_with_forward",

@@ -9,16 +9,23 @@ wrapper is C++ too (inductor's ``cpp_wrapper``): a call runs its kernels one aft
 Python between them and without holding Python's GIL, so the pieces of a batch that run side by side
 on worker threads (:func:`~scenescore.runtime.threads.in_parallel`) use every core (a wrapper in
 Python holds the GIL for each kernel, and the pieces take turns).
+
+Worker processes that start alike (an ensemble's members, an experiment's seeds) meet the same graph
+at once. :func:`first_compile` lets one of them compile it while the others wait for its kernels in the
+cache folder, instead of each compiling the same graph on cores they share.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, TypeVar
 
 import torch
+from filelock import FileLock
 
 from .cache import cache_folder
 
@@ -26,6 +33,7 @@ __all__ = [
     "GRAPHS_KEPT",
     "compile_fn",
     "compile_settings",
+    "first_compile",
     "traced_autograd",
     "backward_with_forward",
     "mark_batch",
@@ -49,12 +57,39 @@ def compile_settings(device_type: str) -> dict[str, Any]:
     return {}
 
 
+def _kernel_folder() -> Path:
+    """Where compiled kernels are kept: the user's cache folder's ``inductor/`` unless
+    ``TORCHINDUCTOR_CACHE_DIR`` named another when the package was imported (set for torch here)."""
+    if not _USER_CACHE:
+        os.environ[INDUCTOR_CACHE_ENV] = str(cache_folder("inductor"))
+    return Path(os.environ[INDUCTOR_CACHE_ENV])
+
+
 def compile_fn(fn: F, device_type: str) -> F:
     """``fn`` compiled as one graph (``fullgraph``: a break is an error, not a silent slow path), its
     kernels kept in the user's cache folder."""
-    if not _USER_CACHE:
-        os.environ[INDUCTOR_CACHE_ENV] = str(cache_folder("inductor"))
+    _kernel_folder()
     return torch.compile(fn, fullgraph=True, **compile_settings(device_type))  # type: ignore[return-value]
+
+
+@contextmanager
+def first_compile(key: str) -> Iterator[None]:
+    """Around a compiled function's first call in this process, ``key`` naming the graph it compiles
+    (whatever decides the graph: the function, the settings it closes over, its inputs' kinds): the
+    first process to reach it with that key compiles while any other that reaches it waits, then finds
+    the kernels in the cache folder; once the graph has been compiled there, no process waits. A
+    lock held by a process that dies is let go by the system. A wrong key costs time only: two graphs
+    under one key compile one after the other, one graph under two keys compiles twice at once."""
+    folder = _kernel_folder() / "scenescore-graphs"
+    name = hashlib.sha256(f"{key} torch {torch.__version__}".encode()).hexdigest()[:32]
+    done = folder / f"{name}.done"
+    if done.exists():
+        yield
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    with FileLock(str(folder / f"{name}.lock")):
+        yield
+        done.touch()
 
 
 #: the graphs one compiled function may keep (torch's default keeps 8, then fails a ``fullgraph``

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from ..costs.base import CostError
 from ..costs.finite import FiniteWatch, watching
+from ..costs.terms import CostError
 from ..errors import check_number
 from ..runtime import draw
 from ..runtime import generator as make_generator

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from scenescore.costs import Bounds, CostFn, HingeCollision, collision
-from scenescore.costs.base import CostError
+from scenescore.costs.terms import CostError
 from scenescore.problem.problem import Problem
 from scenescore.scene.scene import Scene, SceneObject
 from scenescore.solvers import get

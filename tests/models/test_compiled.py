@@ -159,6 +159,52 @@ def test_compiled_kernels_are_kept_in_the_users_cache_folder(monkeypatch, tmp_pa
     assert compiling.compile_settings("mps") == {}
 
 
+def test_processes_starting_alike_compile_a_graph_once_between_them(monkeypatch, tmp_path):
+    import threading
+    import time
+
+    from scenescore.runtime import compiling
+
+    monkeypatch.setattr(compiling, "_USER_CACHE", True)
+    monkeypatch.setenv(compiling.INDUCTOR_CACHE_ENV, str(tmp_path))
+    entered, log = threading.Event(), []
+
+    def compiles(key: str, hold: float) -> None:  # a lock of the file is a process's own: threads stand in
+        with compiling.first_compile(key):
+            log.append(("in", key))
+            entered.set()
+            time.sleep(hold)
+            log.append(("out", key))
+
+    first = threading.Thread(target=compiles, args=("graph a", 0.5))
+    first.start()
+    entered.wait()
+    # another graph's first compile does not wait; the same graph's waits for the first to be done
+    other = threading.Thread(target=compiles, args=("graph b", 0.0))
+    same = threading.Thread(target=compiles, args=("graph a", 0.0))
+    other.start()
+    other.join()
+    same.start()
+    same.join()
+    first.join()
+    assert log.index(("out", "graph b")) < log.index(("out", "graph a"))
+    assert log[-2:] == [("in", "graph a"), ("out", "graph a")]
+    # once compiled, no process waits: not even while another holds the graph's lock
+    from contextlib import ExitStack
+
+    from filelock import FileLock
+
+    locks = sorted((tmp_path / "scenescore-graphs").glob("*.lock"))
+    assert len(locks) == 2
+    with ExitStack() as held:
+        for lock in locks:
+            held.enter_context(FileLock(str(lock)))
+        again = threading.Thread(target=compiles, args=("graph a", 0.0))
+        again.start()
+        again.join(timeout=10)
+        assert not again.is_alive()
+
+
 def test_pooled_of_the_resolved_inputs_is_the_networks_own_pass():
     torch.manual_seed(0)
     model = ss.models.ScoreModel.create(ss.FootprintEncoder(), hidden=8, layers=1, neighbours=3, radius=4.0)
@@ -171,7 +217,7 @@ class EagerStandIn:
     """A network's compiled passes stood in for by its own (nothing compiled)."""
 
     def __init__(self, net: ss.models.EnergyNet):
-        self.net = net
+        self.net, self.device_type = net, "cpu"
         self.traced = self.energy_traced = False
 
     def pose_grad(self, resolved):  # noqa: ANN001, ANN201

@@ -13,7 +13,8 @@ from torch.utils._python_dispatch import TorchDispatchMode
 
 import scenescore as ss
 from scenescore.costs import CostFn, HingeCollision, LearnedEnergy
-from scenescore.costs.base import CostError, stack_sums
+from scenescore.costs.base import stack_sums
+from scenescore.costs.terms import CostError
 from scenescore.learn.size_groups import SizeGroups
 from scenescore.models.network import round_flags
 from scenescore.planning.placement import placement_problem
