@@ -18,7 +18,9 @@ scenario: the median scenario's t / oracle, the catastrophic placements (more th
 scenario's oracle means off) and how many were flagged, and the good placements (within 3 of the
 scenario's oracle means) flagged; last, per way, how many catastrophic and good placements each kind of
 flag fired on, and for an ensemble the counts with its ``members`` flag needing more members to doubt,
-or only where they split. ``--augment K`` trains the network
+or only where they split. ``--mirror`` trains the networks on each training scene's mirror image
+beside it (:func:`mirrored`); ``--mirror-fit`` prints how well they fit the other scenes' relations
+(:func:`mirror_fit`), training nothing. ``--augment K`` trains the network
 on K sub-scenes of each training scene beside it (each without one movable object, the relations among
 the rest kept); ``--ways`` runs some of the five. ``--priors DIR`` keeps each prior there by name,
 ``--tune JSON`` sets the fine-tuning's TrainConfig fields, ``--first-seed`` starts the seeds elsewhere
@@ -36,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from zoo_configs import flag_kinds, members_rules  # a sibling study: studies/ is the script's own folder
 
 from scenescore.costs import ExampleRelations
@@ -112,6 +115,35 @@ def sub_scenes(scenes: list[Any], copies: int, seed: int) -> list[Any]:
     return out
 
 
+def mirrored(scene: Any) -> Any:
+    """``scene`` reflected in the vertical line through its bounds' centre: ``x`` to ``x0 + x1 - x``,
+    headings ``t`` to ``pi - t``, each outline mirrored in its own frame (``v`` to ``-v``), so that every
+    footprint lands where the reflection puts it."""
+    out = scene.copy()
+    (x0, _), (x1, _) = out.bounds
+    for o in out.objects:
+        if o.pose is not None:
+            o.pose = (x0 + x1 - o.pose[0], o.pose[1], float(np.pi - o.pose[2]))
+        if isinstance(o.shape, dict):
+            o.shape = {"polygon": [[u, -v] for u, v in reversed(o.shape["polygon"])]}
+    return out.with_poses(out.poses()) if all(o.pose is not None for o in out.objects) else out
+
+
+def mirror_fit(scenes: list[Any]) -> tuple[float, float]:
+    """How well each scene, and its mirror image, fits the relations of the others
+    (:class:`~scenescore.costs.ExampleRelations` of them, every object moving): the mean energy per object
+    of the scenes as they are and of their mirror images. Where the two are alike, the data shows its
+    relations mirrored too."""
+    own, mirror = [], []
+    for i, s in enumerate(scenes):
+        rest = ExampleRelations([t for j, t in enumerate(scenes) if j != i])
+        for shown, out in ((s, own), (mirrored(s), mirror)):
+            cost = rest.bind(shown, movable=np.ones(len(shown), dtype=bool))
+            poses = torch.as_tensor(shown.poses(), dtype=torch.float32)[None]
+            out.append(float(cost.evaluate(poses)[0]) / len(shown))
+    return float(np.mean(own)), float(np.mean(mirror))
+
+
 def one_pair(
     name: str,
     seed: int,
@@ -122,13 +154,16 @@ def one_pair(
     augment: int,
     priors: Path | None = None,
     tune: TrainConfig | None = None,
+    mirror: bool = False,
 ) -> dict[str, list[dict]]:
     """Every way's records for one scenario and seed (``priors``: as :func:`prior_of`; ``tune``: the
-    fine-tuning's settings, default the CLI's)."""
+    fine-tuning's settings, default the CLI's; ``mirror``: the networks trained on each scene's mirror
+    image too)."""
     sc = get(name)
     train_s, test_s = sc.split(seed)
     train_s = train_s[:k]
     shown = train_s + sub_scenes(train_s, augment, seed)
+    shown += [mirrored(s) for s in shown] if mirror else []
     model = tuned = None
     if set(ways) - set(TUNED):
         model = fit(shown, TrainConfig(**ONE_NETWORK), seed=seed, progress=False, run=Run(cache=cache))
@@ -208,6 +243,18 @@ def main() -> None:
         help="train the network on K sub-scenes of each training scene besides it, each without one "
         "movable object (default 0)",
     )
+    ap.add_argument(
+        "--mirror",
+        action="store_true",
+        help="train the networks on each training scene's mirror image too (reflected in the vertical "
+        "line through the bounds' centre)",
+    )
+    ap.add_argument(
+        "--mirror-fit",
+        action="store_true",
+        help="print how well each scenario's training scenes and their mirror images fit the other "
+        "scenes' relations (mirror_fit), running nothing else",
+    )
     ap.add_argument("--first-seed", type=int, default=0, help="the first seed (default 0)")
     ap.add_argument("--priors", type=Path, default=None, help="a folder the priors are kept in by name")
     ap.add_argument(
@@ -233,13 +280,29 @@ def main() -> None:
     if args.records:
         report(merged(args.records, ways), ways)
         return
+    if args.mirror_fit:
+        print("| scenario | seed | own (per object) | mirrored | mirrored - own |\n|---|---:|---:|---:|---:|")
+        for name in args.scenarios.split(","):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
+                own, mirror = mirror_fit(get(name).split(seed)[0][: args.train_scenes])
+                print(f"| {name} | {seed} | {own:.2f} | {mirror:.2f} | {mirror - own:+.2f} |")
+        return
     per: dict[str, dict[str, list[dict]]] = {}
     for name in args.scenarios.split(","):
         per[name] = {w: [] for w in ways}
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             t0 = time.perf_counter()
             got = one_pair(
-                name, seed, args.train_scenes, args.weight, args.cache, ways, args.augment, args.priors, tune
+                name,
+                seed,
+                args.train_scenes,
+                args.weight,
+                args.cache,
+                ways,
+                args.augment,
+                args.priors,
+                tune,
+                args.mirror,
             )
             for w in ways:
                 per[name][w] += got[w]

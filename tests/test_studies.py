@@ -181,3 +181,31 @@ def test_few_examples_pools_each_scenarios_own_verdicts(capsys):
     per = {"zoo-fine": {"network": [rec(30, 1.0), rec(1, 1.0)]}, "zoo-wide": {"network": [rec(30, 20.0)]}}
     fe["report"](per, ("network",))
     assert "catastrophic 1 of 3 (0 flagged), good flagged 0 of 2 (0.0%)" in capsys.readouterr().out
+
+
+def test_few_examples_mirrors_every_footprint_where_the_reflection_puts_it():
+    """studies/few_examples.py --mirror: each object's outline lands on the reflection of its outline
+    (checked with shapely), twice is the scene itself, and a scene whose relations the others show
+    mirrored fits them as well mirrored."""
+    from shapely.geometry import Polygon
+
+    import scenescore as ss
+
+    fe = _study("few_examples.py")
+    scene = ss.scenarios.get("zoo-bedroom").generate(1, 0)[0]
+    scene.objects[0].shape = {"polygon": [[0.0, 0.0], [0.4, 0.0], [0.4, 0.1], [0.1, 0.3]]}  # chiral
+    (x0, _), (x1, _) = scene.bounds
+    once = fe["mirrored"](scene)
+    for o, m in zip(scene.objects, once.objects, strict=True):
+        want = Polygon([(x0 + x1 - x, y) for x, y in o.world_polygon()])
+        assert Polygon(m.world_polygon()).symmetric_difference(want).area < 1e-9
+    twice = fe["mirrored"](once)
+    assert np.allclose(twice.poses(), scene.poses(), atol=1e-12)
+    assert twice.objects[0].shape == scene.objects[0].shape
+    # the workstation's arrangement has a side: mirrored, its scenes fit the others' relations worse;
+    # beside their mirror images (which the others then show), better
+    four = ss.scenarios.get("zoo-workstation").generate(4, 0)
+    own, mirror = fe["mirror_fit"](four)
+    assert mirror > own + 1.0
+    own, mirror = fe["mirror_fit"](four + [fe["mirrored"](s) for s in four])
+    assert mirror < own
