@@ -53,6 +53,7 @@ from scenescore.planning.placement import OVERLAP_WEIGHT, PLACE, covering, non_o
 from scenescore.problem.problem import Problem
 from scenescore.scenarios import get
 from scenescore.scenarios.zoo import ROOMS, ZOO
+from scenescore.scene import wrap_angle
 from scenescore.scene.outputs import atomic_write_text
 from scenescore.solvers import solve
 from scenescore.solvers.langevin import LangevinSolver
@@ -123,10 +124,10 @@ def mirrored(scene: Any) -> Any:
     (x0, _), (x1, _) = out.bounds
     for o in out.objects:
         if o.pose is not None:
-            o.pose = (x0 + x1 - o.pose[0], o.pose[1], float(np.pi - o.pose[2]))
+            o.pose = (x0 + x1 - o.pose[0], o.pose[1], float(wrap_angle(np.pi - o.pose[2])))
         if isinstance(o.shape, dict):
             o.shape = {"polygon": [[u, -v] for u, v in reversed(o.shape["polygon"])]}
-    return out.with_poses(out.poses()) if all(o.pose is not None for o in out.objects) else out
+    return out
 
 
 def mirror_fit(scenes: list[Any]) -> tuple[float, float]:

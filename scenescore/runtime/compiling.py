@@ -88,8 +88,11 @@ def first_compile(key: str) -> Iterator[None]:
         return
     folder.mkdir(parents=True, exist_ok=True)
     with FileLock(str(folder / f"{name}.lock")):
-        yield
-        done.touch()
+        if not done.exists():  # else another process compiled it while this one waited
+            yield
+            done.touch()
+            return
+    yield  # the kernels are there: read them without holding up the other waiting processes
 
 
 #: the graphs one compiled function may keep (torch's default keeps 8, then fails a ``fullgraph``
