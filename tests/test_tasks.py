@@ -134,6 +134,20 @@ def test_records_are_written_as_each_task_finishes_in_worker_processes(tmp_path)
     assert run_tasks(_Counted(fail_after=0), tasks, log=lambda s: None, sweep=Sweep(tmp_path)) == got
 
 
+def test_an_executor_is_told_the_lengths_only_where_the_tasks_have_them(tmp_path):
+    told: list[object] = []
+
+    def local(fn, items, jobs, log, bar, done, **lengths):
+        told.append(lengths.get("lengths"))
+        for k, item in enumerate(items):
+            done(k, fn(item, log=log))
+
+    tasks = _tasks(3)
+    assert [r["square"] for r in run_tasks(_square, tasks, sweep=Sweep(executor=local))] == [0, 1, 4]
+    got = run_tasks(_square, tasks, sweep=Sweep(executor=local), length=lambda t: float(t.seed % 2))
+    assert [r["square"] for r in got] == [0, 1, 4] and told == [None, [0.0, 1.0, 0.0]]
+
+
 def test_a_record_json_cannot_keep_exactly_is_refused_by_name(tmp_path):
     import numpy as np
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -104,6 +105,52 @@ def test_balanced_jobs_leave_no_core_idle_in_a_last_round(tasks, cores, jobs):
     from scenescore.runtime.workers import balanced_jobs
 
     assert balanced_jobs(tasks, cores) == jobs
+    assert balanced_jobs([7.0] * tasks, cores) == jobs  # the unit of a length does not matter
+
+
+def test_balanced_jobs_count_the_long_tasks_where_lengths_are_given():
+    from scenescore.runtime.workers import SOONER, _ends, balanced_jobs
+
+    trainings = [1.0] * 9 + [0.0] * 18  # Table 2: nine trainings among tasks of seconds
+    assert balanced_jobs(27, 2, SOONER) == 2  # taken as equal, three processes gain too little
+    assert balanced_jobs(trainings, 2, SOONER) == 3  # 4.5 trainings' time against two processes' 5
+    assert _ends(sorted(trainings, reverse=True), 3, 2) == pytest.approx(4.5)
+    assert _ends(sorted(trainings, reverse=True), 2, 2) == pytest.approx(5.0)
+    assert balanced_jobs([3.0, 1.0, 1.0, 1.0], 2) == 2  # the long one on a core, the others on the other
+    assert balanced_jobs([0.0, 0.0, 0.0], 2) == 2  # nothing to gain: one per core
+    with pytest.raises(ValueError, match="length >= 0"):
+        balanced_jobs([1.0, -1.0], 2)
+
+
+def test_items_are_handed_out_longest_first_and_come_back_in_order(monkeypatch):
+    from scenescore.runtime import workers
+
+    assert workers.longest_first([0.0, 1.0, 0.5, 1.0], 4) == [1, 3, 2, 0]  # ties keep their order
+    assert workers.longest_first(None, 3) == [0, 1, 2]
+    with pytest.raises(ValueError, match="2 lengths for 3 items"):
+        workers.longest_first([1.0, 2.0], 3)
+    submitted: list[int] = []
+
+    class Pool:  # runs each task as it is submitted, noting the order
+        def submit(self, fn, task):
+            from concurrent.futures import Future
+
+            submitted.append(task[1])
+            future: Future = Future()
+            future.set_result(workers._one(task))
+            return future
+
+    monkeypatch.setattr(workers, "worker_pool", lambda jobs: contextlib.nullcontext(Pool()))
+    finished: list[int] = []
+    got = workers.map_balanced(
+        _square,
+        [1, 2, 3, 4],
+        jobs=2,
+        log=lambda s: None,
+        done=lambda k, v: finished.append(k),
+        lengths=[0.0, 5.0, 0.0, 1.0],
+    )
+    assert got == [1, 4, 9, 16] and submitted == [1, 3, 0, 2] and sorted(finished) == [0, 1, 2, 3]
 
 
 def test_trainings_share_the_cores_where_they_end_sooner(monkeypatch):
@@ -166,9 +213,9 @@ def test_equal_tasks_share_the_cores_where_they_end_sooner(monkeypatch):
     got = []
     real = workers.map_in_workers
 
-    def counted(fn, items, jobs=1, log=print, bar=None, done=None):
+    def counted(fn, items, jobs=1, log=print, bar=None, done=None, lengths=None):
         got.append(jobs)
-        return real(fn, items, jobs, log, bar, done)
+        return real(fn, items, jobs, log, bar, done, lengths)
 
     monkeypatch.setattr(workers, "map_in_workers", counted)
     lines: list[str] = []

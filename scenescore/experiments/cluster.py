@@ -133,19 +133,23 @@ class SubmititExecutor:
         log: Log = print,
         bar: str | None = None,
         done: Callable[[int, Any], None] | None = None,
+        lengths: Sequence[float] | None = None,
     ) -> list[Any]:
         from tqdm.auto import tqdm
+
+        from ..runtime.workers import longest_first
 
         executor = self._executor()
         finished = done or (lambda k, value: None)
         local = self.config.cluster == "local"
         poll = self.config.poll_s if self.config.poll_s is not None else (0.5 if local else 15.0)
-        waiting = list(range(len(items)))
+        waiting = longest_first(lengths, len(items))
         running: dict[int, Any] = {}
         results: dict[int, Any] = {}
         failed: list[str] = []
         if not local:  # one job array; the cluster decides how many run at once
-            array = executor.map_array(_run, [fn] * len(items), list(items), [self.config.cpus] * len(items))
+            given = [items[k] for k in waiting]
+            array = executor.map_array(_run, [fn] * len(given), given, [self.config.cpus] * len(given))
             running, waiting = dict(zip(waiting, array)), []
             job_id = array[0].job_id.split("_")[0]
             log(f"submitted {len(items)} tasks as SLURM job array {job_id} (logs under {self.config.folder})")

@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..scene.scene import SceneError
-from .tasks import Sweep
+from .tasks import Sweep, Task
 
-__all__ = ["Execution"]
+__all__ = ["Execution", "network_trainings"]
 
 
 @dataclass(frozen=True)
@@ -44,3 +44,10 @@ class Execution:
         jobs = self.jobs
         if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
             raise SceneError(f"jobs must be a whole number >= 1, got {jobs!r}")
+
+
+def network_trainings(task: Task) -> float:
+    """A table's task's expected length (:func:`~scenescore.experiments.tasks.run_tasks`'s ``length``), in
+    trainings of SceneScore's network: one for a SceneScore row, which trains its network (the long
+    tasks), none for a baseline or the oracle, seconds each."""
+    return 1.0 if task.method.startswith("SceneScore") else 0.0

@@ -22,7 +22,7 @@ from ..planning.placement import Placer, SceneScorePlacer
 from ..runtime.devices import resolve_device
 from ..scenarios import DiningScenario
 from ..scene.scene import Scene, SceneError
-from .execution import Execution
+from .execution import Execution, network_trainings
 from .report import SeedResults, format_table
 from .tasks import Task, describe, run_tasks
 
@@ -142,7 +142,9 @@ def run(
     res = MissingResult()
     jobs = 1 if scenes_fn is not None else ex.jobs
     bar = "Table 1" if ex.progress else None
-    for task, (figs, dt) in zip(tasks, run_tasks(one, tasks, jobs, ex.log, bar, ex.sweep)):
+    for task, (figs, dt) in zip(
+        tasks, run_tasks(one, tasks, jobs, ex.log, bar, ex.sweep, length=network_trainings)
+    ):
         res.per_seed.setdefault(task.method, []).append(figs)
         res.seconds[task.method] = res.seconds.get(task.method, 0.0) + dt
     return res

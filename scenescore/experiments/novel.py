@@ -30,7 +30,7 @@ from ..runtime.devices import resolve_device
 from ..scenarios import OrderingScenario
 from ..scenarios.ordering import RULES
 from ..scene.scene import Scene, SceneError
-from .execution import Execution
+from .execution import Execution, network_trainings
 from .missing import fit_predict
 from .report import Row, SeedResults, format_table
 from .tasks import Task, describe, run_tasks
@@ -246,7 +246,7 @@ def run(
         for m in chosen
     ]
     bar = "Table 2" if ex.progress else None
-    records = run_tasks(one, tasks, 1 if here else ex.jobs, ex.log, bar, ex.sweep)
+    records = run_tasks(one, tasks, 1 if here else ex.jobs, ex.log, bar, ex.sweep, length=network_trainings)
     errors = {(t.seed, t.scenario, t.method): r for t, r in zip(tasks, records)}
     res = NovelResult()
     for seed in range(seeds):

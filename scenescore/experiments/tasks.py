@@ -29,7 +29,9 @@ __all__ = ["Task", "Codec", "RECORD", "Sweep", "Executor", "code_version", "desc
 
 Log = Callable[[str], None]
 # runs ``fn(task, log=...)`` for each task, calling ``done(k, record)`` in this process as task ``k``
-# finishes: :func:`~scenescore.runtime.workers.map_in_workers`'s signature (the local executor)
+# finishes: :func:`~scenescore.runtime.workers.map_in_workers`'s signature (the local executor); given
+# ``lengths=`` (each task's expected length, where the experiment estimates them) only where an
+# experiment passes ``length`` to :func:`run_tasks`
 Executor = Callable[..., list[Any]]
 
 
@@ -202,11 +204,14 @@ def run_tasks(
     bar: str | None = None,
     sweep: Sweep | None = None,
     codec: Codec = RECORD,
+    length: Callable[[Task], float] | None = None,
 ) -> list[Any]:
     """``fn(task, log=log)`` for each of ``tasks``, the records in order. With ``sweep.folder``, a task
     with a record there (of the same spec and code version) is not run again, and each task run writes
     its record as it finishes (``sweep.fresh``: none is read); the log says how many were reused.
-    ``jobs``, ``bar``: as :func:`~scenescore.runtime.workers.map_in_workers`."""
+    ``jobs``, ``bar``: as :func:`~scenescore.runtime.workers.map_in_workers`. ``length(task)``: its
+    expected length in any unit, where tasks differ (a training against a lookup): the executor hands
+    the longest out first and, on a CPU by default, counts them in choosing its processes."""
     sweep = sweep or Sweep()
     records: dict[int, Any] = {}
     if sweep.folder is not None and tasks:
@@ -226,5 +231,7 @@ def run_tasks(
         records[k] = record if sweep.folder is None else _write(sweep, tasks[k], codec, record)
 
     if todo:
-        sweep.executor(fn, [tasks[k] for k in todo], jobs, log, bar, done=done)
+        given = [tasks[k] for k in todo]
+        lengths = {} if length is None else {"lengths": [float(length(t)) for t in given]}
+        sweep.executor(fn, given, jobs, log, bar, done=done, **lengths)
     return [records[k] for k in range(len(tasks))]

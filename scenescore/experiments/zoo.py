@@ -300,8 +300,6 @@ def run(
     tasks = [
         Task.of("zoo", scenario=name, seed=seed, config=settings) for name in chosen for seed in range(seeds)
     ]
-    if ex.jobs > 1:  # the largest graphs first, so the long pairs do not start last
-        tasks.sort(key=lambda t: -get(t.scenario).counts[1])
     # each scenario's seeds' networks compile together where that pays, settled before any pair starts
     kind, base = resolve_device(ex.device).type, config or TrainConfig(**ONE_NETWORK)
     configs = {
@@ -322,7 +320,10 @@ def run(
         train_scenes=train_scenes,
     )
     bar = "zoo" if ex.progress else None
-    records = run_tasks(pair, tasks, ex.jobs, ex.log, bar, ex.sweep, PAIR_RECORD)
+    # the largest graphs first in worker processes, so the long pairs do not start last
+    records = run_tasks(
+        pair, tasks, ex.jobs, ex.log, bar, ex.sweep, PAIR_RECORD, length=lambda t: get(t.scenario).counts[1]
+    )
     done = {(t.scenario, t.seed): r for t, r in zip(tasks, records)}
     res = ZooResult()
     for name in chosen:

@@ -11,6 +11,7 @@ of leaving it waiting.
 
 from __future__ import annotations
 
+import heapq
 import os
 import threading
 import time
@@ -27,6 +28,7 @@ __all__ = [
     "map_in_workers",
     "default_jobs",
     "balanced_jobs",
+    "longest_first",
     "map_balanced",
     "SOONER",
     "WorkerDied",
@@ -77,24 +79,43 @@ def default_jobs(device: Any = None) -> int:
     return 1
 
 
-def balanced_jobs(tasks: int, cores: int, sooner: float = 1.0) -> int:
-    """Worker processes for ``tasks`` tasks of about equal length on ``cores`` cores: of the counts from
-    ``min(tasks, cores)`` to ``min(tasks, 2 * cores)``, the one that ends the tasks first when processes
-    beyond the cores share them (each then runs at ``cores / n`` of a core), the fewest on a tie. Three
-    trainings on two cores run side by side and end in 1.5 trainings' time, where two and then one take
-    two (the third alone, one core idle); four on two take two rounds either way, so two processes.
-    ``sooner``: more processes than ``min(tasks, cores)`` only where the tasks then end in at most that
-    share of its time (:data:`SOONER` for tasks of unequal length)."""
-    if tasks < 1 or cores < 1:
-        raise ValueError(f"tasks and cores must be at least 1, got {tasks} and {cores}")
-    low, high = min(tasks, cores), min(tasks, 2 * cores)
-    best = min(range(low, high + 1), key=lambda n: (_ends(tasks, n, cores), n))
-    return best if _ends(tasks, best, cores) <= sooner * _ends(tasks, low, cores) else low
+def balanced_jobs(tasks: int | Sequence[float], cores: int, sooner: float = 1.0) -> int:
+    """Worker processes for ``tasks`` on ``cores`` cores: a number of tasks of about equal length, or each
+    task's expected length (any unit), the longest handed out first (:func:`longest_first`). Of the
+    counts from ``min(n, cores)`` to ``min(n, 2 * cores)`` for ``n`` tasks, the one that ends the tasks
+    first when processes beyond the cores share them (each then runs at ``cores / n`` of a core), the
+    fewest on a tie. Three trainings on two cores run side by side and end in 1.5 trainings' time, where
+    two and then one take two (the third alone, one core idle); four on two take two rounds either way,
+    so two processes; nine trainings and eighteen tasks of seconds, three. ``sooner``: more processes
+    than ``min(n, cores)`` only where the tasks then end in at most that share of its time
+    (:data:`SOONER` where the lengths are estimates)."""
+    lengths = [1.0] * tasks if isinstance(tasks, int) else sorted((float(x) for x in tasks), reverse=True)
+    if not lengths or cores < 1 or min(lengths) < 0:
+        raise ValueError(f"need at least one task of a length >= 0 and a core, got {tasks} and {cores}")
+    low, high = min(len(lengths), cores), min(len(lengths), 2 * cores)
+    ends = {n: _ends(lengths, n, cores) for n in range(low, high + 1)}
+    tie = 1e-9 * max(1.0, ends[low])  # equal ends computed along different sums
+    best = min(n for n, end in ends.items() if end <= min(ends.values()) + tie)
+    return best if ends[best] <= sooner * ends[low] + tie else low
 
 
-def _ends(tasks: int, n: int, cores: int) -> float:
-    """When ``tasks`` of equal length end in ``n`` processes on ``cores`` cores, in tasks' lengths."""
-    return -(-tasks // n) * max(1.0, n / cores)
+def _ends(lengths: Sequence[float], n: int, cores: int) -> float:
+    """When tasks of ``lengths``, handed out in that order, end in ``n`` processes on ``cores`` cores,
+    each task to the first process free and every process at ``min(1, cores / n)`` of a core."""
+    free = [0.0] * n  # when each process is next free, at full speed
+    for length in lengths:
+        heapq.heappush(free, heapq.heappop(free) + length)
+    return max(free) * max(1.0, n / cores)
+
+
+def longest_first(lengths: Sequence[float] | None, count: int) -> list[int]:
+    """The order to hand out ``count`` items in: the longest of ``lengths`` first, items of equal length
+    in their own order (``None``: their own order)."""
+    if lengths is None:
+        return list(range(count))
+    if len(lengths) != count:
+        raise ValueError(f"{len(lengths)} lengths for {count} items")
+    return sorted(range(count), key=lambda k: -float(lengths[k]))
 
 
 class WorkerDied(RuntimeError):
@@ -123,11 +144,13 @@ def map_in_workers(
     log: Log = print,
     bar: str | None = None,
     done: Callable[[int, T], None] | None = None,
+    lengths: Sequence[float] | None = None,
 ) -> list[T]:
     """``fn(item, log=log)`` for each of ``items``, in order. With ``jobs > 1``, in that many worker
     processes of one torch thread each (``fn`` must pickle: a module-level function or a
-    :func:`functools.partial` of one); each item's log lines are printed when it finishes, and its
-    result does not depend on ``jobs``. ``bar``: with workers, a progress bar of the items done under
+    :func:`functools.partial` of one), handed out longest first where ``lengths`` gives each item's
+    expected length (so that short ones fill the last round); each item's log lines are printed when it
+    finishes, and its result does not depend on ``jobs``. ``bar``: with workers, a progress bar of the items done under
     that name (on a terminal; the log lines print above it). ``done(k, result)``: called in this process
     as item ``k`` finishes (a sweep keeps each result then, so an interrupted run loses none it had)."""
     if jobs < 1:
@@ -148,7 +171,9 @@ def map_in_workers(
             total=len(items), desc=bar, disable=None if bar else True, unit="task", dynamic_ncols=True
         ) as shown,
     ):
-        futures: list[Future] = [pool.submit(_one, (fn, k, item)) for k, item in enumerate(items)]
+        futures: list[Future] = [
+            pool.submit(_one, (fn, k, items[k])) for k in longest_first(lengths, len(items))
+        ]
         for future in as_completed(futures):
             try:
                 k, value, lines = future.result()
@@ -174,17 +199,23 @@ def map_balanced(
     log: Log = print,
     bar: str | None = None,
     done: Callable[[int, T], None] | None = None,
+    lengths: Sequence[float] | None = None,
 ) -> list[T]:
     """:func:`map_in_workers` for ``jobs`` cores: in :func:`balanced_jobs` worker processes, up to two per
-    core where ``items`` of about equal length then end sooner (three on two cores: three processes,
+    core where ``items`` then end sooner (three of about equal length on two cores: three processes,
     together in one and a half items' time, where two would leave one core idle for the third); its
-    choice logged where it differs from ``jobs``. More processes than cores only where the items would
-    end at least :data:`SOONER` as soon: an experiment's tasks are of unequal length, and a smaller
-    gain is lost to that."""
-    n = balanced_jobs(len(items), jobs, SOONER) if items and jobs > 1 else jobs
+    choice logged where it differs from ``jobs``. ``lengths``: each item's expected length, where they
+    differ (nine trainings and eighteen tasks of seconds: three processes, as for nine trainings). More
+    processes than cores only where the items would end at least :data:`SOONER` as soon: lengths are
+    estimates, and a smaller gain is lost to their errors."""
+    n = (
+        balanced_jobs(len(items) if lengths is None else lengths, jobs, SOONER)
+        if items and jobs > 1
+        else jobs
+    )
     if n > jobs:
         log(f"{n} worker processes for {len(items)} tasks on {jobs} cores")
-    return map_in_workers(fn, items, n, log, bar, done)
+    return map_in_workers(fn, items, n, log, bar, done, lengths)
 
 
 def _one(task: tuple[Callable[..., Any], int, Any]) -> tuple[int, Any, list[str]]:
