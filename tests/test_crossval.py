@@ -162,6 +162,8 @@ def test_train_on_a_dozen_scenes_trains_on_all_and_carries_the_cross_validated_f
 
 def test_five_scenes_are_validated_by_leaving_one_out_and_train_says_what_they_pin_down(tmp_path):
     scenes = _pairs(5)
+    for s in scenes:
+        s.meta["unit"] = "m"  # spreads said in centimetres, as reports say lengths in metres
     lines: list[str] = []
     model = ss.train(
         scenes,
@@ -177,7 +179,7 @@ def test_five_scenes_are_validated_by_leaving_one_out_and_train_says_what_they_p
     assert any("validating by leaving one scene out at a time (5 more trainings)" in line for line in lines)
     assert any("each held out once (leave one scene out; seed 0)" in line for line in lines)
     said = [line for line in lines if line.startswith(("the examples pin down:", "they leave free:"))]
-    assert len(said) == 2
+    assert len(said) == 2 and " cm), " in said[0] and " m)" not in said[0]
     assert any("`scenescore place MODEL SCENE --examples DATA.jsonl`" in line for line in lines)
     assert any(line.startswith("`--init prior` starts the training") for line in lines)
     pinned = json.loads((tmp_path / "r.json").read_text())["pinned"]

@@ -38,7 +38,7 @@ from ..models.freedom import describe_spreads
 from ..planning.tidying.calibration import defer
 from ..scene.outputs import atomic_write_text
 from ..scene.scene import Scene, write_jsonl
-from ..scene.units import length_unit
+from ..scene.units import ShownUnit, declared_unit
 from ..viz.plot import training_figure
 from .crossval import fold_config, folds_for, train_and_cross_validate
 
@@ -226,7 +226,8 @@ def _pinned(
     if ref is None or ref.spreads is None:
         return None
     table = {c: s for c in ref.spreads if (s := ref.spread(c)) is not None}
-    for line in describe_spreads(table, ref.length_scale, length_unit(scenes[0])):
+    shown = ShownUnit(declared_unit(scenes))  # metres said as centimetres, as reports say them
+    for line in describe_spreads(table, shown.value(100 * ref.length_scale), shown.words):
         say(line)
     return {
         c: {
