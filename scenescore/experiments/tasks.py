@@ -232,6 +232,7 @@ def run_tasks(
 
     if todo:
         given = [tasks[k] for k in todo]
-        lengths = {} if length is None else {"lengths": [float(length(t)) for t in given]}
-        sweep.executor(fn, given, jobs, log, bar, done=done, **lengths)
+        # an executor written without ``lengths`` still runs tasks that have none
+        told = {} if length is None else {"lengths": [float(length(t)) for t in given]}
+        sweep.executor(fn, given, jobs, log, bar, done=done, **told)
     return [records[k] for k in range(len(tasks))]

@@ -150,8 +150,8 @@ def map_in_workers(
     processes of one torch thread each (``fn`` must pickle: a module-level function or a
     :func:`functools.partial` of one), handed out longest first where ``lengths`` gives each item's
     expected length (so that short ones fill the last round); each item's log lines are printed when it
-    finishes, and its result does not depend on ``jobs``. ``bar``: with workers, a progress bar of the items done under
-    that name (on a terminal; the log lines print above it). ``done(k, result)``: called in this process
+    finishes, and its result does not depend on ``jobs``. ``bar``: with workers, a progress bar of the
+    items done under that name (on a terminal; the log lines print above it). ``done(k, result)``: called in this process
     as item ``k`` finishes (a sweep keeps each result then, so an interrupted run loses none it had)."""
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
